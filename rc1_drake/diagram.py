@@ -1,0 +1,100 @@
+"""The RC1 Diagram: plant, serpenoid source, PID servos, failure switch, wheel friction, IMU, loggers.
+
+    serpenoid + gait_bias -> servo_pid -> servo_power -> rc1_plant.actuation
+    rc1_plant.state + servo torque -> friction -> rc1_plant.applied_generalized_force
+    rc1_plant.state -> head_imu (head yaw rate); loggers record the state and the servo torques.
+
+The failure switch (servo.FailureSwitch) acts on a context: it sets a failed joint's servo power to
+zero and turns its joint friction on, at t = 0 or, for a later failure, between two time steps.
+
+What the Diagram fixes at build time (gait amplitudes, frequencies and phases, servo gains, time
+step, log period) is `build_key(scenario)`; everything else (friction coefficients, failures, bias,
+start pose) is set per run in the context by `configure_context`, so batch work reuses one Diagram.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+from pydrake.systems.framework import DiagramBuilder
+from pydrake.systems.primitives import LogVectorOutput, MatrixGain
+
+from .config import Scenario
+from .friction import FrictionForces
+from .gait import add_gait_source, serpenoid_parameters
+from .model import RC1Plant, add_rc1_plant
+from .servo import FailureSwitch, add_servos
+
+
+@dataclasses.dataclass
+class RC1Diagram:
+    diagram: object
+    rc1: RC1Plant
+    friction: FrictionForces
+    failure_switch: FailureSwitch
+    gait_bias: object  # ConstantVectorSource
+    state_logger: object
+    torque_logger: object
+    build_key: tuple
+
+    @property
+    def plant(self):
+        return self.rc1.plant
+
+
+def build_key(scenario: Scenario) -> tuple:
+    """The scenario fields a built Diagram depends on; equal keys can share a Diagram."""
+    amp, omega, phase, _ = serpenoid_parameters(scenario.gait)
+    n = scenario.numerics
+    return (
+        tuple(amp), tuple(omega), tuple(phase),
+        dataclasses.astuple(scenario.servo),
+        n.time_step_s, n.log_period_s,
+    )
+
+
+def build_diagram(scenario: Scenario) -> RC1Diagram:
+    builder = DiagramBuilder()
+    rc1 = add_rc1_plant(builder, time_step=scenario.numerics.time_step_s)
+    plant = rc1.plant
+    desired_state, bias = add_gait_source(builder, scenario.gait)
+    power, servo_torque = add_servos(builder, rc1, desired_state, scenario.servo, scenario.numerics.time_step_s)
+
+    friction = builder.AddSystem(
+        FrictionForces(plant, rc1.geometry, scenario.friction, scenario.numerics.sgn_smoothing_m_s)
+    )
+    friction.set_name("friction")
+    builder.Connect(plant.get_state_output_port(), friction.get_input_port(0))
+    builder.Connect(servo_torque, friction.get_input_port(1))
+    builder.Connect(friction.get_output_port(0), plant.get_applied_generalized_force_input_port())
+
+    nq = plant.num_positions()
+    imu_select = np.zeros((1, 2 * nq))
+    imu_select[0, nq + 2] = 1.0  # the base yaw rate is the head module's yaw rate
+    imu = builder.AddSystem(MatrixGain(imu_select))
+    imu.set_name("head_imu")
+    builder.Connect(plant.get_state_output_port(), imu.get_input_port())
+
+    builder.ExportOutput(plant.get_state_output_port(), "plant_state")
+    builder.ExportOutput(imu.get_output_port(), "head_yaw_rate")
+    builder.ExportOutput(servo_torque, "servo_torque")
+
+    period = scenario.numerics.log_period_s
+    state_logger = LogVectorOutput(plant.get_state_output_port(), builder, period)
+    state_logger.set_name("state_logger")
+    torque_logger = LogVectorOutput(servo_torque, builder, period)
+    torque_logger.set_name("torque_logger")
+
+    diagram = builder.Build()
+    diagram.set_name("rc1")
+    return RC1Diagram(
+        diagram=diagram,
+        rc1=rc1,
+        friction=friction,
+        failure_switch=FailureSwitch(rc1, power, friction),
+        gait_bias=bias,
+        state_logger=state_logger,
+        torque_logger=torque_logger,
+        build_key=build_key(scenario),
+    )

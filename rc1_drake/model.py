@@ -1,0 +1,94 @@
+"""The RC1 MultibodyPlant: models/rc1.sdf plus the planar base joint that SDFormat cannot express."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+from pydrake.multibody.parsing import Parser
+from pydrake.multibody.plant import AddMultibodyPlant, MultibodyPlantConfig
+from pydrake.multibody.tree import PlanarJoint
+
+from .config import NUM_JOINTS, REPO_ROOT
+from .kinematics import ChainGeometry
+
+MODEL_PATH = REPO_ROOT / "models" / "rc1.sdf"
+NUM_MODULES = NUM_JOINTS + 1
+
+
+@dataclasses.dataclass(frozen=True)
+class RC1Plant:
+    plant: object  # MultibodyPlant
+    scene_graph: object
+    model_instance: object
+    base_joint: object  # PlanarJoint: x, y, yaw of module_1 (the head) in the world
+    joints: tuple  # RevoluteJoint joint_1 .. joint_13
+    geometry: ChainGeometry
+    effort_limit: np.ndarray  # (13,) N m, from the SDF
+
+
+def add_rc1_plant(builder, *, time_step: float, model_path=MODEL_PATH) -> RC1Plant:
+    """Add the discrete (SAP) plant of RC1, moving in the world's horizontal plane.
+
+    A discrete plant enforces the joint limits (+-38 deg) as constraints: this is the restoring
+    torque at the limits of paper section 3, and it keeps a failed joint inside them.
+    """
+    plant, scene_graph = AddMultibodyPlant(
+        MultibodyPlantConfig(time_step=time_step, discrete_contact_approximation="sap"), builder
+    )
+    (instance,) = Parser(plant).AddModels(str(model_path))
+    head = plant.GetBodyByName("module_1", instance)
+    base = plant.AddJoint(PlanarJoint("base", plant.world_frame(), head.body_frame(), np.zeros(3)))
+    plant.Finalize()
+    plant.set_name("rc1_plant")
+    joints = tuple(plant.GetJointByName(f"joint_{i}", instance) for i in range(1, NUM_JOINTS + 1))
+    # The kinematics kernels assume this coordinate order; fail loudly if Drake ever changes it.
+    assert base.position_start() == 0 and base.velocity_start() == 0
+    assert [j.position_start() for j in joints] == list(range(3, 3 + NUM_JOINTS))
+    effort = np.array([plant.get_joint_actuator(a).effort_limit() for a in plant.GetJointActuatorIndices()])
+    return RC1Plant(
+        plant=plant,
+        scene_graph=scene_graph,
+        model_instance=instance,
+        base_joint=base,
+        joints=joints,
+        geometry=chain_geometry(plant, instance),
+        effort_limit=effort,
+    )
+
+
+def chain_geometry(plant, instance) -> ChainGeometry:
+    """Joint and wheel locations, masses and yaw inertias, read from the finalized plant."""
+    context = plant.CreateDefaultContext()
+
+    def planar(frame):
+        X = frame.GetFixedPoseInBodyFrame()
+        yaw = np.arctan2(X.rotation().matrix()[1, 0], X.rotation().matrix()[0, 0])
+        return complex(*X.translation()[:2]), yaw
+
+    j_parent, j_child = [], []
+    for i in range(1, NUM_JOINTS + 1):
+        joint = plant.GetJointByName(f"joint_{i}", instance)
+        j_parent.append(planar(joint.frame_on_parent())[0])
+        j_child.append(planar(joint.frame_on_child())[0])
+    wheel_module, wheel_offset, wheel_yaw = [], [], []
+    for k in range(1, NUM_MODULES + 1):
+        if plant.HasFrameNamed(f"wheel_{k}", instance):
+            xy, yaw = planar(plant.GetFrameByName(f"wheel_{k}", instance))
+            wheel_module.append(k - 1)
+            wheel_offset.append(xy)
+            wheel_yaw.append(yaw)
+    bodies = [plant.GetBodyByName(f"module_{k}", instance) for k in range(1, NUM_MODULES + 1)]
+    mass = np.array([b.get_mass(context) for b in bodies])
+    izz = np.array(
+        [b.CalcSpatialInertiaInBodyFrame(context).CalcRotationalInertia().get_moments()[2] for b in bodies]
+    )
+    return ChainGeometry(
+        joint_in_parent=np.array(j_parent),
+        joint_in_child=np.array(j_child),
+        wheel_module=np.array(wheel_module),
+        wheel_offset=np.array(wheel_offset),
+        wheel_yaw=np.array(wheel_yaw),
+        module_mass=mass,
+        module_yaw_inertia=izz,
+    )

@@ -1,0 +1,170 @@
+"""The experiment of paper section 4: start configuration, stop rules, and simulate() -> Run.
+
+At t = 0 the joints are at the serpenoid angles and rates, the head centre at the start point, the
+body's mean axis (the mean of the 14 module yaws) along the start heading, and the body otherwise at
+rest: its centre of mass does not move and its mean axis does not turn. The run stops when the head
+centre crosses the line x = line_x_m (outcome "crossed"), when the head's yaw has turned by
+`revolutions` full turns ("circling", the failures near the head), or at the time limit
+("timed_out").
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+
+import numpy as np
+from pydrake.systems.analysis import Simulator
+from pydrake.systems.framework import EventStatus
+
+from .config import Rc1Error, Scenario
+from .diagram import RC1Diagram, build_diagram, build_key
+from .gait import serpenoid
+from .kinematics import ChainGeometry, module_motion, module_yaws
+
+
+def initial_state(scenario: Scenario, geometry: ChainGeometry) -> np.ndarray:
+    """Plant state [x, y, yaw, q; vx, vy, w, q_dot] at t = 0 (see the module docstring)."""
+    q, q_dot = serpenoid(0.0, scenario.gait)
+    relative = module_yaws(0.0, q)  # module yaws relative to the head's
+    head_yaw = math.radians(scenario.start.heading_deg) - relative.mean()
+    head_rate = -module_yaws(0.0, q_dot).mean()
+    # Module velocities with the head centre at rest, then shift so the centre of mass is at rest.
+    x = np.concatenate([[scenario.start.x_m, scenario.start.y_m, head_yaw], q, [0.0, 0.0, head_rate], q_dot])
+    _, _, _, v = module_motion(x, geometry)
+    m = geometry.module_mass
+    head_v = -(m * v).sum() / m.sum()
+    x[16:18] = head_v.real, head_v.imag
+    return x
+
+
+def configure_context(built: RC1Diagram, context, scenario: Scenario) -> None:
+    """Reset `context` to t = 0 and write the per-run parts of `scenario` into it."""
+    if build_key(scenario) != built.build_key:
+        raise ValueError("scenario needs a different Diagram (gait, servo gains or numerics differ)")
+    built.diagram.SetDefaultContext(context)
+    context.SetTime(0.0)
+    built.friction.set_friction(
+        built.friction.GetMyMutableContextFromRoot(context),
+        scenario.friction,
+        scenario.numerics.sgn_smoothing_m_s,
+    )
+    built.failure_switch.reset(context)
+    for failure in scenario.failures:
+        if failure.time_s == 0.0:
+            built.failure_switch.fail(context, failure)
+    bias = math.radians(scenario.gait.bias_deg)
+    per_joint = np.full(13, bias)
+    for jg in scenario.gait.joints:
+        if jg.bias_deg is not None:
+            per_joint[jg.joint - 1] = math.radians(jg.bias_deg)
+    built.gait_bias.get_mutable_source_value(built.gait_bias.GetMyMutableContextFromRoot(context)).SetFromVector(
+        per_joint
+    )
+    plant_context = built.plant.GetMyMutableContextFromRoot(context)
+    built.plant.SetPositionsAndVelocities(plant_context, initial_state(scenario, built.rc1.geometry))
+    for logger in (built.state_logger, built.torque_logger):
+        logger.FindMutableLog(context).Clear()
+
+
+@dataclasses.dataclass
+class Run:
+    """A finished run: logs (rows = samples) and how it ended."""
+
+    scenario: Scenario
+    t: np.ndarray  # (N,) s
+    state: np.ndarray  # (N, 32) plant state [x, y, yaw, q1..q13; vx, vy, w, q1_dot..q13_dot]
+    servo_torque: np.ndarray  # (N, 13) N m, what the servos applied (0 once a joint has failed)
+    stop_reason: str  # "crossed", "circling" or "timed_out"
+    wall_time_s: float
+    geometry: ChainGeometry  # of the plant that made the run
+
+    @property
+    def head_xy(self):
+        return self.state[:, 0:2]
+
+    @property
+    def head_yaw(self):
+        return self.state[:, 2]
+
+    @property
+    def q(self):
+        return self.state[:, 3:16]
+
+    @property
+    def q_dot(self):
+        return self.state[:, 19:32]
+
+    @property
+    def head_yaw_rate(self):
+        return self.state[:, 18]
+
+
+class Session:
+    """One built Diagram with its Simulator, reused for every run whose build_key matches."""
+
+    def __init__(self, scenario: Scenario):
+        self.built = build_diagram(scenario)
+        self.simulator = Simulator(self.built.diagram)
+
+    def simulate(self, scenario: Scenario) -> Run:
+        built, simulator = self.built, self.simulator
+        context = simulator.get_mutable_context()
+        configure_context(built, context, scenario)
+        plant = built.plant
+        plant_context = plant.GetMyContextFromRoot(context)
+        yaw0 = plant.GetPositions(plant_context)[2]
+        line = scenario.stop.line_x_m
+        turn = None if scenario.stop.revolutions is None else 2 * math.pi * scenario.stop.revolutions
+        reason = ["timed_out"]
+
+        def monitor(root_context):
+            q = plant.GetPositions(plant_context)
+            if not np.isfinite(q[0]):
+                return EventStatus.Failed(built.diagram, "the state is not finite")
+            if line is not None and q[0] >= line:
+                reason[0] = "crossed"
+                return EventStatus.ReachedTermination(built.diagram, "crossed the line")
+            if turn is not None and abs(q[2] - yaw0) >= turn:
+                reason[0] = "circling"
+                return EventStatus.ReachedTermination(built.diagram, "circling")
+            return EventStatus.Succeeded()
+
+        # Later failures split the run: advance to the failure time, switch, go on.
+        t_end = scenario.stop.time_limit_s
+        later = sorted((f for f in scenario.failures if 0.0 < f.time_s < t_end), key=lambda f: f.time_s)
+        simulator.set_monitor(monitor)
+        simulator.Initialize()
+        start = time.perf_counter()
+        try:
+            for failure in later:
+                simulator.AdvanceTo(failure.time_s)
+                if reason[0] != "timed_out":
+                    break
+                built.failure_switch.fail(context, failure)
+            if reason[0] == "timed_out":
+                simulator.AdvanceTo(t_end)
+        except RuntimeError as e:
+            raise Rc1Error(f"simulation failed at t = {context.get_time():.3f} s: {' '.join(str(e).split())}") from None
+        finally:
+            simulator.clear_monitor()
+        wall = time.perf_counter() - start
+
+        t = built.state_logger.FindLog(context).sample_times()
+        state = built.state_logger.FindLog(context).data().T
+        torque = built.torque_logger.FindLog(context).data().T
+        t_stop = context.get_time()
+        if len(t) == 0 or t[-1] < t_stop - 1e-12:  # close the logs at the exact stop time
+            t = np.append(t, t_stop)
+            state = np.vstack([state, plant.GetPositionsAndVelocities(plant_context)])
+            torque = np.vstack([torque, built.diagram.GetOutputPort("servo_torque").Eval(context)])
+        return Run(scenario=scenario, t=t, state=state, servo_torque=torque, stop_reason=reason[0],
+                   wall_time_s=wall, geometry=built.rc1.geometry)
+
+
+def simulate(*, scenario: Scenario, session: Session | None = None) -> Run:
+    """Run the experiment of `scenario`; pass a Session to reuse its Diagram and Simulator."""
+    if session is None or session.built.build_key != build_key(scenario):
+        session = Session(scenario)
+    return session.simulate(scenario)

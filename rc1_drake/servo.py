@@ -1,0 +1,100 @@
+"""Per-joint PID servos (HS5645MG, torque-limited) and the failure switch (paper section 3).
+
+A working joint i gets u_i = clamp(Kp e_i + Ki sum(e_i) dt + Kd de_i/dt, -e_max_i, e_max_i) with
+e_i = theta_i - q_i: a discrete PID sampled at the plant's step (the servo is a digital one),
+explicit in the plant state, which is stable for these gains at steps of a few milliseconds.
+e_max_i, the servo's power, is a parameter of the `servo_power` system: 1.19 N m (the SDF's effort
+limit) while the joint works.
+
+The failure switch acts on the context at the failure time: the failed joint's servo power drops to
+zero, so its PID no longer reaches the joint, and the joint's viscous friction c_joint (a parameter
+of friction.FrictionForces) turns on. The plant's joint limits (+-38 deg, constraints of the
+discrete SAP solver) supply the restoring torque at the limits that the paper's joint-limit PD
+controller provides. The servos run no Python during a time step.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from pydrake.symbolic import MakeVectorVariable
+from pydrake.symbolic import max as symbolic_max
+from pydrake.symbolic import min as symbolic_min
+from pydrake.systems.primitives import LinearSystem, Multiplexer, SymbolicVectorSystem
+
+from .config import NUM_JOINTS, Failure, Servo
+from .friction import FAILED
+
+
+def clamp_torque(u, limit):
+    """The servo_power system's law, for tests and the reference model: clamp(u, -limit, limit)."""
+    return np.minimum(np.maximum(u, -limit), limit)
+
+
+class FailureSwitch:
+    """Turns joints' servos off in a context: servo power -> 0, joint friction c_joint on (Fig. 4)."""
+
+    def __init__(self, rc1, power_system, friction_system):
+        self._effort = rc1.effort_limit
+        self._power = power_system
+        self._friction = friction_system
+
+    def reset(self, root_context) -> None:
+        """Every servo powered, no failed joint."""
+        self._power_parameter(root_context).SetFromVector(self._effort)
+        self._failed(root_context)[:] = 0.0
+
+    def fail(self, root_context, failure: Failure) -> None:
+        self._power_parameter(root_context).SetAtIndex(failure.joint - 1, 0.0)
+        self._failed(root_context)[failure.joint - 1] = 1.0
+
+    def servo_power(self, root_context) -> np.ndarray:
+        return self._power_parameter(root_context).CopyToVector()
+
+    def _power_parameter(self, root_context):
+        return self._power.GetMyMutableContextFromRoot(root_context).get_mutable_numeric_parameter(0)
+
+    def _failed(self, root_context):
+        return self._friction.parameters(self._friction.GetMyMutableContextFromRoot(root_context))[FAILED]
+
+
+def add_servos(builder, rc1, desired_state_port, servo: Servo, time_step: float):
+    """Add the PID servos and their power (torque limit) stage; returns (servo_power system, torque port)."""
+    plant = rc1.plant
+    nq = plant.num_positions()
+    n = NUM_JOINTS
+    # Input u = [theta; theta_dot; plant state [x, y, yaw, q; vx, vy, w, q_dot]].
+    error = np.zeros((n, 2 * n + 2 * nq))  # e = theta - q
+    error[:, :n] = np.eye(n)
+    error[:, 2 * n + 3 : 2 * n + nq] = -np.eye(n)
+    rate_error = np.zeros_like(error)  # de/dt = theta_dot - q_dot
+    rate_error[:, n : 2 * n] = np.eye(n)
+    rate_error[:, 2 * n + nq + 3 :] = -np.eye(n)
+    # State z = running sum of e dt: z+ = z + dt e;  u = Ki z + Kp e + Kd de/dt.
+    pid = builder.AddSystem(
+        LinearSystem(
+            A=np.eye(n),
+            B=time_step * error,
+            C=servo.ki_Nm_per_rad_s * np.eye(n),
+            D=servo.kp_Nm_per_rad * error + servo.kd_Nm_s_per_rad * rate_error,
+            time_period=time_step,
+        )
+    )
+    pid.set_name("servo_pid")
+    inputs = builder.AddSystem(Multiplexer([2 * n, 2 * nq]))
+    inputs.set_name("servo_inputs")
+    u = MakeVectorVariable(n, "u")
+    limit = MakeVectorVariable(n, "servo_power")
+    power = builder.AddSystem(
+        SymbolicVectorSystem(
+            input=u,
+            parameter=limit,
+            output=[symbolic_min(symbolic_max(u[i], -limit[i]), limit[i]) for i in range(n)],
+        )
+    )
+    power.set_name("servo_power")
+    builder.Connect(desired_state_port, inputs.get_input_port(0))
+    builder.Connect(plant.get_state_output_port(), inputs.get_input_port(1))
+    builder.Connect(inputs.get_output_port(), pid.get_input_port())
+    builder.Connect(pid.get_output_port(), power.get_input_port())
+    builder.Connect(power.get_output_port(), plant.get_actuation_input_port())
+    return power, power.get_output_port()
