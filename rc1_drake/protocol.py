@@ -151,9 +151,10 @@ class Session:
             simulator.clear_monitor()
         wall = time.perf_counter() - start
 
-        t = built.state_logger.FindLog(context).sample_times()
-        state = built.state_logger.FindLog(context).data().T
-        torque = built.torque_logger.FindLog(context).data().T
+        # Copies: the logs live in the context, which the next run of this Session reuses.
+        t = np.array(built.state_logger.FindLog(context).sample_times())
+        state = np.array(built.state_logger.FindLog(context).data().T)
+        torque = np.array(built.torque_logger.FindLog(context).data().T)
         t_stop = context.get_time()
         if len(t) == 0 or t[-1] < t_stop - 1e-12:  # close the logs at the exact stop time
             t = np.append(t, t_stop)

@@ -1,0 +1,203 @@
+"""An independent implementation of the planar equations of motion (paper Eq. 1), for checking Drake.
+
+It shares no code with the Drake model beyond the geometry numbers (module length, masses, wheel
+places): kinematics in real 2-vectors, the mass matrix and Coriolis terms from the module Jacobians
+(Lagrange's equations for the 14 rigid modules, which is Eq. 1 written in relative joint angles),
+wheel friction from Eqs. 4-5, and SciPy's stiff ODE solver. As in the paper, the working joints are
+prescribed: they follow the serpenoid exactly, with no servo. A failed joint is free, with viscous
+friction c_joint and a stiff PD restoring torque beyond +-38 deg (paper section 3).
+
+    M(z) z_ddot = -sum_k m_k J_k^T h_k(z, z_dot) + sum_w J_w^T F_w + tau_joint
+
+with z = (x, y, yaw of the head, q_1..q_13), J_k the Jacobian of module k's centre, h_k its
+velocity-product acceleration, F_w the wheel forces of Eqs. 4-5. Rows of the working joints are
+dropped; their accelerations are known.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+
+import numpy as np
+from scipy.integrate import solve_ivp
+from scipy.interpolate import CubicSpline
+
+from .config import Scenario
+from .gait import serpenoid_parameters
+
+STOP_GAIN = 200.0  # N m/rad, the joint-limit PD's stiffness (paper section 3)
+STOP_DAMPING = 1.0  # N m s/rad, its damping, active beyond the limit
+LIMIT_RAD = math.radians(38.0)
+G = 9.81
+
+
+@dataclasses.dataclass
+class ReferenceRun:
+    t: np.ndarray
+    head_xy: np.ndarray  # (N, 2)
+    head_yaw: np.ndarray
+    q: np.ndarray  # (N, 13)
+    crossed: bool
+    wall_time_s: float
+
+
+class PlanarSnake:
+    """The planar chain with real-vector kinematics; positions of module centres from (x, y, yaw, q)."""
+
+    def __init__(self, geometry):
+        real = lambda c: np.stack([np.real(c), np.imag(c)], axis=-1)  # noqa: E731
+        self.a = real(geometry.joint_in_parent)  # (13, 2)
+        self.b = real(geometry.joint_in_child)
+        self.wheel_module = np.asarray(geometry.wheel_module)
+        self.wheel_offset = real(geometry.wheel_offset)
+        self.wheel_yaw = np.asarray(geometry.wheel_yaw, dtype=float)
+        self.mass = np.asarray(geometry.module_mass, dtype=float)
+        self.inertia = np.asarray(geometry.module_yaw_inertia, dtype=float)
+        self.n = len(self.mass)
+
+    @staticmethod
+    def _rot(phi, v):
+        c, s = np.cos(phi), np.sin(phi)
+        return np.stack([c * v[..., 0] - s * v[..., 1], s * v[..., 0] + c * v[..., 1]], axis=-1)
+
+    def frames(self, z):
+        """Module yaws (14,), centres (14, 2) and joint positions (13, 2) in the world."""
+        phi = z[2] + np.concatenate([[0.0], np.cumsum(z[3:])])
+        ra = self._rot(phi[:-1], self.a)
+        rb = self._rot(phi[1:], self.b)
+        centres = z[None, 0:2] + np.concatenate([np.zeros((1, 2)), np.cumsum(ra - rb, axis=0)])
+        joints = centres[:-1] + ra
+        return phi, centres, joints
+
+    def point_jacobian(self, points, modules, centres, joints):
+        """(P, 2, 16) Jacobian of world points fixed on the given modules."""
+        P = len(points)
+        jac = np.zeros((P, 2, 3 + self.n - 1))
+        jac[:, 0, 0] = 1.0
+        jac[:, 1, 1] = 1.0
+        rel = points - centres[0]
+        jac[:, 0, 2], jac[:, 1, 2] = -rel[:, 1], rel[:, 0]
+        for j in range(self.n - 1):
+            behind = modules > j
+            rel = points[behind] - joints[j]
+            jac[behind, 0, 3 + j] = -rel[:, 1]
+            jac[behind, 1, 3 + j] = rel[:, 0]
+        return jac
+
+    def dynamics_terms(self, z, zd):
+        """Mass matrix M(z) and the velocity-product force -sum m J^T h."""
+        phi, centres, joints = self.frames(z)
+        phid = zd[2] + np.concatenate([[0.0], np.cumsum(zd[3:])])
+        jac = self.point_jacobian(centres, np.arange(self.n), centres, joints)
+        rot = np.zeros((self.n, 3 + self.n - 1))  # d(phi_k)/dz
+        rot[:, 2] = 1.0
+        for k in range(1, self.n):
+            rot[k, 3 : 3 + k] = 1.0
+        mass_matrix = np.einsum("k,kai,kaj->ij", self.mass, jac, jac) + np.einsum("k,ki,kj->ij", self.inertia, rot, rot)
+        # Centripetal acceleration of each centre: differentiate the chain twice, keep the phid^2 terms.
+        ra = self._rot(phi[:-1], self.a)
+        rb = self._rot(phi[1:], self.b)
+        steps = -(phid[:-1, None] ** 2) * ra + (phid[1:, None] ** 2) * rb
+        h = np.concatenate([np.zeros((1, 2)), np.cumsum(steps, axis=0)])
+        return mass_matrix, -np.einsum("k,kai,ka->i", self.mass, jac, h)
+
+    def wheel_force(self, z, zd, friction, eps):
+        """Generalized force of Eqs. 4-5 on all wheels."""
+        phi, centres, joints = self.frames(z)
+        m = self.wheel_module
+        points = centres[m] + self._rot(phi[m], self.wheel_offset)
+        jac = self.point_jacobian(points, m, centres, joints)
+        vel = jac @ zd
+        heading = phi[m] + self.wheel_yaw
+        t = np.stack([np.cos(heading), np.sin(heading)], axis=-1)
+        n = np.stack([-t[:, 1], t[:, 0]], axis=-1)
+        v_long = (vel * t).sum(axis=1)
+        v_lat = (vel * n).sum(axis=1)
+        weight = self.mass[m] * G
+        sgn = lambda v: v / np.sqrt(v * v + eps * eps)  # noqa: E731
+        f_long = -(friction.c_long * v_long + friction.mu_long * weight * sgn(v_long))
+        f_lat = -(friction.c_lat * v_lat + friction.mu_lat * weight * sgn(v_lat))
+        forces = f_long[:, None] * t + f_lat[:, None] * n
+        return np.einsum("pai,pa->i", jac, forces)
+
+
+def simulate_reference(scenario: Scenario, geometry, *, joint_path=None, rtol=1e-7, atol=1e-9) -> ReferenceRun:
+    """Integrate the scenario with the working joints prescribed; stops at the line or time limit.
+
+    The working joints follow the serpenoid of the scenario's gait, or, if joint_path = (t, q) is
+    given (q: (N, 13) rad), a cubic spline through those samples (e.g. the angles a servo achieved).
+    """
+    if any(f.time_s != 0.0 or f.mode != "free" for f in scenario.failures):
+        raise ValueError("the reference model handles joints that are free from t = 0 only")
+    snake = PlanarSnake(geometry)
+    amp, omega, phase, bias = serpenoid_parameters(scenario.gait)
+    failed = np.array(sorted(f.joint - 1 for f in scenario.failures), dtype=int)
+    working = np.setdiff1d(np.arange(snake.n - 1), failed)
+    free = np.concatenate([[0, 1, 2], 3 + failed])
+    fixed = 3 + working
+    eps = scenario.numerics.sgn_smoothing_m_s
+    c_joint = scenario.friction.c_joint
+
+    if joint_path is None:
+        def prescribed(t):
+            arg = omega * t - phase
+            return (amp * np.sin(arg) + bias, amp * omega * np.cos(arg), -amp * omega**2 * np.sin(arg))
+    else:
+        spline = CubicSpline(joint_path[0], joint_path[1], axis=0)
+        d1, d2 = spline.derivative(1), spline.derivative(2)
+
+        def prescribed(t):
+            return spline(t), d1(t), d2(t)
+
+    def full(t, y):
+        q, qd, qdd = prescribed(t)
+        z = np.empty(3 + snake.n - 1)
+        zd = np.empty_like(z)
+        z[fixed], zd[fixed] = q[working], qd[working]
+        nf = len(free)
+        z[free], zd[free] = y[:nf], y[nf:]
+        return z, zd, qdd
+
+    def rhs(t, y):
+        z, zd, qdd = full(t, y)
+        mass_matrix, velocity_force = snake.dynamics_terms(z, zd)
+        force = velocity_force + snake.wheel_force(z, zd, scenario.friction, eps)
+        qf, qfd = z[3 + failed], zd[3 + failed]
+        over = np.abs(qf) - LIMIT_RAD
+        stop = np.where(over > 0, -np.sign(qf) * STOP_GAIN * over - STOP_DAMPING * qfd, 0.0)
+        force[3 + failed] += -c_joint * qfd + stop
+        rhs_free = force[free] - mass_matrix[np.ix_(free, fixed)] @ qdd[working]
+        acc = np.linalg.solve(mass_matrix[np.ix_(free, free)], rhs_free)
+        return np.concatenate([zd[free], acc])
+
+    # Start as the protocol says: serpenoid angles and rates, head at the start point, mean module
+    # yaw along the heading, centre of mass at rest, mean module yaw not turning.
+    q0, qd0, _ = prescribed(0.0)
+    rel = np.concatenate([[0.0], np.cumsum(q0)])
+    reld = np.concatenate([[0.0], np.cumsum(qd0)])
+    z0 = np.concatenate([[scenario.start.x_m, scenario.start.y_m, math.radians(scenario.start.heading_deg) - rel.mean()], q0])
+    zd0 = np.concatenate([[0.0, 0.0, -reld.mean()], qd0])
+    _, centres, joints = snake.frames(z0)
+    jac = snake.point_jacobian(centres, np.arange(snake.n), centres, joints)
+    com_velocity = np.einsum("k,kai,i->a", snake.mass, jac, zd0) / snake.mass.sum()
+    zd0[0:2] -= com_velocity
+    y0 = np.concatenate([z0[free], zd0[free]])
+
+    events = []
+    line = scenario.stop.line_x_m
+    if line is not None:
+        def crossed(t, y):
+            return y[0] - line
+        crossed.terminal, crossed.direction = True, 1
+        events.append(crossed)
+    start = time.perf_counter()
+    sol = solve_ivp(rhs, (0.0, scenario.stop.time_limit_s), y0, method="LSODA", rtol=rtol, atol=atol,
+                    events=events, dense_output=False, max_step=0.01)
+    wall = time.perf_counter() - start
+    if not sol.success:
+        raise RuntimeError(f"reference integration failed: {sol.message}")
+    zs = np.array([full(t, y)[0] for t, y in zip(sol.t, sol.y.T)])
+    return ReferenceRun(t=sol.t, head_xy=zs[:, 0:2], head_yaw=zs[:, 2], q=zs[:, 3:],
+                        crossed=bool(events and len(sol.t_events[0])), wall_time_s=wall)

@@ -1,0 +1,52 @@
+"""The rc1 command: outputs on success, one-line errors on bad input."""
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+from rc1_drake.cli import main
+
+
+def test_run_writes_summary_json_and_plot(tmp_path, capsys):
+    out = tmp_path / "deep" / "j7.json"
+    plot = tmp_path / "j7.png"
+    assert main(["run", "--scenario", "joint_7", "--json", str(out), "--plot", str(plot)]) == 0
+    record = json.loads(out.read_text())
+    for key in ("final_head_xy_m", "t_final_s", "outcome", "revolutions", "circle_diameter_m", "wall_time_s"):
+        assert key in record
+    assert record["outcome"] == "crossed" and record["failed_joints"] == [7]
+    assert record["final_head_xy_m"][0] >= 3.18
+    assert plot.stat().st_size > 20_000  # a real figure, not an empty canvas
+    assert "outcome" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(
+    "argv, expected",
+    [
+        (["run", "--friction", "mu_side=1"], "unknown friction coefficient 'mu_side'"),
+        (["run", "--friction", "mu_lat=abc"], "'abc' is not a number"),
+        (["run", "--friction", "mu_lat"], "is not NAME=VALUE"),
+        (["run", "--failed-joint", "14"], "joint 14 does not exist"),
+        (["run", "--bias-deg", "x"], "'x' is not a number"),
+        (["run", "--scenario", "nope"], "no scenario named 'nope'"),
+        (["run", "--scenarios-file", "/nonexistent.yaml"], "no such scenario file"),
+        (["run", "--friction", "mu_lat=-2"], "friction.mu_lat: must be >= 0"),
+        (["run", "--failed-joint", "7", "--scenario", "joint_7"], "joint 7 is listed twice"),
+        (["fly"], "invalid choice"),
+    ],
+)
+def test_bad_options_are_one_line_errors(argv, expected, capsys):
+    with pytest.raises(SystemExit) as exit_info:
+        code = main(argv)
+        raise SystemExit(code)
+    assert exit_info.value.code == 2
+    err = capsys.readouterr().err
+    assert expected in err and err.count("\n") == 1 and "Traceback" not in err
+
+
+def test_console_entry_point_reports_errors_without_traceback():
+    proc = subprocess.run([sys.executable, "-m", "rc1_drake.cli", "run", "--failed-joint", "0"],
+                          capture_output=True, text=True)
+    assert proc.returncode == 2 and proc.stderr.count("\n") == 1 and "joint 0 does not exist" in proc.stderr

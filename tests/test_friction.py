@@ -1,0 +1,82 @@
+"""Friction kernels (paper Eqs. 4-5) against hand-computed values, and the implicit step's equations."""
+
+import math
+
+import numpy as np
+import pytest
+
+from rc1_drake.friction import implicit_friction_force, smooth_sign, wheel_friction_forces
+
+PAPER = dict(mu_long=0.12, mu_lat=1.5, c_long=0.14, c_lat=3.75)
+N = 0.286 * 9.81  # one module's weight
+
+
+def test_hand_computed_forces_exact_sign():
+    # A wheel rolling forward at 0.3 m/s and slipping left at 0.02 m/s:
+    #   F_long = -(0.14 * 0.3 + 0.12 * 2.80566) = -0.378679 N
+    #   F_lat  = -(3.75 * 0.02 + 1.5 * 2.80566) = -4.283490 N
+    f_long, f_lat = wheel_friction_forces(np.array([0.3]), np.array([0.02]), normal_force=np.array([N]), eps=0.0,
+                                          **PAPER)
+    assert f_long[0] == pytest.approx(-0.378679, abs=1e-6)
+    assert f_lat[0] == pytest.approx(-4.283490, abs=1e-6)
+    # Backward and to the right: the signs flip, magnitudes stay (friction is odd in v).
+    b_long, b_lat = wheel_friction_forces(np.array([-0.3]), np.array([-0.02]), normal_force=np.array([N]), eps=0.0,
+                                          **PAPER)
+    assert b_long[0] == pytest.approx(-f_long[0]) and b_lat[0] == pytest.approx(-f_lat[0])
+
+
+def test_smoothing_is_the_sign_away_from_zero_and_zero_at_rest():
+    eps = 1e-3
+    assert smooth_sign(np.array([0.0]), eps)[0] == 0.0
+    # v = 10 eps: 10 / sqrt(101) = 0.995037...
+    assert smooth_sign(np.array([0.01]), eps)[0] == pytest.approx(10 / math.sqrt(101))
+    assert smooth_sign(np.array([-1.0]), eps)[0] == pytest.approx(-1.0, abs=1e-6)
+    f_long, _ = wheel_friction_forces(np.array([0.0]), np.array([0.0]), normal_force=np.array([N]), eps=eps, **PAPER)
+    assert f_long[0] == 0.0
+
+
+def _random_problem(seed, n=6, w=4):
+    rng = np.random.default_rng(seed)
+    a = rng.normal(size=(n, n))
+    mass = a @ a.T + n * np.eye(n)
+    jl, jt = rng.normal(size=(w, n)), rng.normal(size=(w, n))
+    v = rng.normal(scale=0.05, size=n)
+    return mass, np.ascontiguousarray(jl), np.ascontiguousarray(jt), v
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_implicit_step_solves_backward_euler(seed):
+    mass, jl, jt, v = _random_problem(seed)
+    dt, eps = 1e-3, 1e-3
+    normal = np.full(len(jl), N)
+    damping = np.zeros(len(v))
+    damping[-1] = 0.045
+    p_free = mass @ v + dt * np.linspace(-1, 1, len(v))
+    tau = implicit_friction_force(jl, jt, damping, mass, p_free, v, dt, normal_force=normal, eps=eps, newton_steps=8,
+                                  **PAPER)
+    v_next = np.linalg.solve(mass, p_free + dt * tau)
+    f_long, f_lat = wheel_friction_forces(jl @ v_next, jt @ v_next, normal_force=normal, eps=eps, **PAPER)
+    expected = jl.T @ f_long + jt.T @ f_lat - damping * v_next
+    assert np.allclose(tau, expected, rtol=1e-8, atol=1e-9)
+
+
+def test_implicit_step_tends_to_the_explicit_law_for_small_steps():
+    mass, jl, jt, v = _random_problem(3)
+    v = v * 20  # sliding well outside the smoothing zone
+    normal = np.full(len(jl), N)
+    dt = 1e-9
+    tau = implicit_friction_force(jl, jt, np.zeros(len(v)), mass, mass @ v, v, dt, normal_force=normal, eps=1e-3,
+                                  newton_steps=2, **PAPER)
+    f_long, f_lat = wheel_friction_forces(jl @ v, jt @ v, normal_force=normal, eps=1e-3, **PAPER)
+    assert np.allclose(tau, jl.T @ f_long + jt.T @ f_lat, rtol=1e-5)
+
+
+def test_implicit_friction_dissipates_and_is_bounded():
+    mass, jl, jt, v = _random_problem(4)
+    normal = np.full(len(jl), N)
+    for dt in (1e-4, 1e-3, 1e-2):
+        tau = implicit_friction_force(jl, jt, np.zeros(len(v)), mass, mass @ v, v, dt, normal_force=normal,
+                                      eps=1e-3, newton_steps=4, **PAPER)
+        v_next = v + dt * np.linalg.solve(mass, tau)
+        assert v_next @ mass @ v_next < v @ mass @ v  # kinetic energy falls
+        assert tau @ v_next < 0  # friction does negative work
