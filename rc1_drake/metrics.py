@@ -1,4 +1,4 @@
-"""Pure functions of runs: the summary of a run, Eq. 6 error, circle fits."""
+"""Pure functions of runs: the summary of a run, revolutions, circle fits."""
 
 from __future__ import annotations
 
@@ -38,13 +38,6 @@ def circle_diameter(head_xy, head_yaw) -> float:
     """Mean diameter of the head's circling (nan with less than one complete turn)."""
     fit = circling_fit(head_xy, head_yaw)
     return float("nan") if fit is None else 2 * fit[1]
-
-
-def simulator_error(predicted_xy, measured_xy, start_xy) -> float:
-    """Paper Eq. 6: |predicted - measured| / |measured - start| * 100 %."""
-    measured = np.asarray(measured_xy, dtype=float)
-    travelled = np.linalg.norm(measured - np.asarray(start_xy, dtype=float))
-    return 100.0 * float(np.linalg.norm(np.asarray(predicted_xy, dtype=float) - measured)) / travelled
 
 
 @dataclasses.dataclass

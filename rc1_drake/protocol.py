@@ -20,7 +20,7 @@ from pydrake.systems.framework import EventStatus
 
 from .config import Rc1Error, Scenario
 from .diagram import RC1Diagram, build_diagram, build_key
-from .gait import serpenoid
+from .gait import serpenoid, serpenoid_parameters
 from .kinematics import ChainGeometry, module_motion, module_yaws
 
 
@@ -54,14 +54,8 @@ def configure_context(built: RC1Diagram, context, scenario: Scenario) -> None:
     for failure in scenario.failures:
         if failure.time_s == 0.0:
             built.failure_switch.fail(context, failure)
-    bias = math.radians(scenario.gait.bias_deg)
-    per_joint = np.full(13, bias)
-    for jg in scenario.gait.joints:
-        if jg.bias_deg is not None:
-            per_joint[jg.joint - 1] = math.radians(jg.bias_deg)
-    built.gait_bias.get_mutable_source_value(built.gait_bias.GetMyMutableContextFromRoot(context)).SetFromVector(
-        per_joint
-    )
+    bias = serpenoid_parameters(scenario.gait)[3]
+    built.gait_bias.get_mutable_source_value(built.gait_bias.GetMyMutableContextFromRoot(context)).SetFromVector(bias)
     plant_context = built.plant.GetMyMutableContextFromRoot(context)
     built.plant.SetPositionsAndVelocities(plant_context, initial_state(scenario, built.rc1.geometry))
     for logger in (built.state_logger, built.torque_logger):

@@ -3,8 +3,8 @@
 A working joint i gets u_i = clamp(Kp e_i + Ki sum(e_i) dt + Kd de_i/dt, -e_max_i, e_max_i) with
 e_i = theta_i - q_i: a discrete PID sampled at the plant's step (the servo is a digital one),
 explicit in the plant state, which is stable for these gains at steps of a few milliseconds.
-e_max_i, the servo's power, is a parameter of the `servo_power` system: 1.19 N m (the SDF's effort
-limit) while the joint works.
+e_max_i, the servo's power, is the value of the `servo_power` source (kept in the context):
+1.19 N m (the SDF's effort limit) while the joint works.
 
 The failure switch acts on the context at the failure time: the failed joint's servo power drops to
 zero, so its PID no longer reaches the joint, and the joint's viscous friction c_joint (a parameter
@@ -19,7 +19,7 @@ import numpy as np
 from pydrake.symbolic import MakeVectorVariable
 from pydrake.symbolic import max as symbolic_max
 from pydrake.symbolic import min as symbolic_min
-from pydrake.systems.primitives import LinearSystem, Multiplexer, SymbolicVectorSystem
+from pydrake.systems.primitives import ConstantVectorSource, LinearSystem, Multiplexer, SymbolicVectorSystem
 
 from .config import NUM_JOINTS, Failure, Servo
 from .friction import FAILED
@@ -51,7 +51,7 @@ class FailureSwitch:
         return self._power_parameter(root_context).CopyToVector()
 
     def _power_parameter(self, root_context):
-        return self._power.GetMyMutableContextFromRoot(root_context).get_mutable_numeric_parameter(0)
+        return self._power.get_mutable_source_value(self._power.GetMyMutableContextFromRoot(root_context))
 
     def _failed(self, root_context):
         return self._friction.parameters(self._friction.GetMyMutableContextFromRoot(root_context))[FAILED]
@@ -82,19 +82,26 @@ def add_servos(builder, rc1, desired_state_port, servo: Servo, time_step: float)
     pid.set_name("servo_pid")
     inputs = builder.AddSystem(Multiplexer([2 * n, 2 * nq]))
     inputs.set_name("servo_inputs")
+    # The servo power (each servo's torque limit) is a constant source: its value lives in the
+    # context, so the failure switch changes it per run, and the default context is a working robot.
+    power = builder.AddSystem(ConstantVectorSource(rc1.effort_limit))
+    power.set_name("servo_power")
+    command = builder.AddSystem(Multiplexer([n, n]))
+    command.set_name("servo_command_and_power")
     u = MakeVectorVariable(n, "u")
-    limit = MakeVectorVariable(n, "servo_power")
-    power = builder.AddSystem(
+    limit = MakeVectorVariable(n, "power")
+    clamp = builder.AddSystem(
         SymbolicVectorSystem(
-            input=u,
-            parameter=limit,
+            input=np.concatenate([u, limit]),
             output=[symbolic_min(symbolic_max(u[i], -limit[i]), limit[i]) for i in range(n)],
         )
     )
-    power.set_name("servo_power")
+    clamp.set_name("servo_torque_limit")
     builder.Connect(desired_state_port, inputs.get_input_port(0))
     builder.Connect(plant.get_state_output_port(), inputs.get_input_port(1))
     builder.Connect(inputs.get_output_port(), pid.get_input_port())
-    builder.Connect(pid.get_output_port(), power.get_input_port())
-    builder.Connect(power.get_output_port(), plant.get_actuation_input_port())
-    return power, power.get_output_port()
+    builder.Connect(pid.get_output_port(), command.get_input_port(0))
+    builder.Connect(power.get_output_port(), command.get_input_port(1))
+    builder.Connect(command.get_output_port(), clamp.get_input_port())
+    builder.Connect(clamp.get_output_port(), plant.get_actuation_input_port())
+    return power, clamp.get_output_port()
