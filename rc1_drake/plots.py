@@ -6,7 +6,6 @@ import matplotlib
 
 matplotlib.use("Agg")  # files only; notebooks set their own backend before importing pyplot
 import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
 
 from .kinematics import module_positions, module_yaws  # noqa: E402
 from .metrics import circling_fit  # noqa: E402
@@ -26,7 +25,7 @@ def head_path_figure(runs, *, labels=None, title=None):
     phi0 = module_yaws(x0[2], x0[3:16])
     p0 = module_positions(complex(x0[0], x0[1]), phi0, first.geometry)
     ax.plot(p0.real, p0.imag, "o", mfc="none", color="k", ms=6, label="start configuration")
-    for run, label in zip(runs, labels):
+    for run, label in zip(runs, labels, strict=True):
         (line,) = ax.plot(run.head_xy[:, 0], run.head_xy[:, 1], "--", label=label or "simulated head path")
         ax.plot(*run.head_xy[-1], "x", color=line.get_color(), ms=9, mew=2)
         fit = circling_fit(run.head_xy, run.head_yaw) if run.stop_reason == "circling" else None

@@ -198,6 +198,6 @@ def simulate_reference(scenario: Scenario, geometry, *, joint_path=None, rtol=1e
     wall = time.perf_counter() - start
     if not sol.success:
         raise RuntimeError(f"reference integration failed: {sol.message}")
-    zs = np.array([full(t, y)[0] for t, y in zip(sol.t, sol.y.T)])
+    zs = np.array([full(t, y)[0] for t, y in zip(sol.t, sol.y.T, strict=True)])
     return ReferenceRun(t=sol.t, head_xy=zs[:, 0:2], head_yaw=zs[:, 2], q=zs[:, 3:],
                         crossed=bool(events and len(sol.t_events[0])), wall_time_s=wall)

@@ -4,7 +4,7 @@ import dataclasses
 
 import pytest
 
-from rc1_drake.config import Failure, Scenario, Stop
+from rc1_drake.config import Failure, Scenario
 from rc1_drake.protocol import Session
 
 

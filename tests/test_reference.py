@@ -7,7 +7,6 @@ failed joint, not the servo model. The smoothing is coarser than the default (5 
 to keep the stiff reference integration short.
 """
 
-import dataclasses
 
 import numpy as np
 import pytest
