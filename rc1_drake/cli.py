@@ -9,7 +9,8 @@ import os
 import sys
 from pathlib import Path
 
-from .config import DEFAULT_SCENARIOS, FRICTION_NAMES, Failure, Rc1Error, load_scenario, validate
+from .config import (DEFAULT_SCENARIOS, EFFECT_NAMES, FRICTION_NAMES, Effects, Failure, Friction, Rc1Error,
+                     load_scenario, validate)
 
 
 class _Parser(argparse.ArgumentParser):
@@ -62,7 +63,47 @@ def make_parser() -> argparse.ArgumentParser:
     run.add_argument("--time-limit-s", type=_float, metavar="T", help="stop after T seconds at the latest")
     run.add_argument("--json", type=Path, metavar="PATH", help="write the summary as JSON")
     run.add_argument("--plot", type=Path, metavar="PATH", help="write the head path figure (PNG, PDF, SVG)")
+
+    syn = sub.add_parser("synthesize", help="write a synthetic campaign in the measurement format")
+    syn.add_argument("out", type=Path, help="campaign folder to create (must not exist)")
+    syn.add_argument("--trials-per-case", type=_positive_int, metavar="N",
+                     help="trials in each case of the paper's design (default: 5, and 1 joint-2 trial)")
+    syn.add_argument("--friction", type=_friction_override, action="append", default=[], metavar="NAME=VALUE",
+                     help="the truth's friction coefficient (repeatable; default: the paper's identified set)")
+    syn.add_argument("--effect", type=_effect, action="append", default=[], metavar="NAME=VALUE",
+                     help=f"a physical effect in the truth ({', '.join(EFFECT_NAMES)}); repeatable")
+    syn.add_argument("--noise-scale", type=_float, default=1.0, metavar="S", help="multiply every sensor noise by S")
+    syn.add_argument("--no-camera", action="store_true", help="leave out the overhead camera columns")
+    syn.add_argument("--seed", type=int, default=0)
+    syn.add_argument("--truth", type=Path, metavar="PATH", help="where to record the truth (JSON)")
+
+    cmp = sub.add_parser("compare", help="replay a campaign through the model and score it (Eq. 6, Table 2)")
+    cmp.add_argument("campaign", type=Path, help="campaign folder (data/README.md)")
+    cmp.add_argument("--friction", type=_friction_override, action="append", default=[], metavar="NAME=VALUE",
+                     help="friction coefficient for the model (repeatable)")
+    cmp.add_argument("--json", type=Path, metavar="PATH", help="write every per-trial and per-case number")
+    cmp.add_argument("--plots", type=Path, metavar="DIR", help="write figures in the paper's styles")
+    cmp.add_argument("--workers", type=_positive_int, metavar="N", help="processes (default: every core)")
     return parser
+
+
+def _positive_int(text: str) -> int:
+    try:
+        n = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{text}' is not a whole number") from None
+    if n < 1:
+        raise argparse.ArgumentTypeError(f"{n} must be at least 1")
+    return n
+
+
+def _effect(text: str) -> tuple[str, float]:
+    name, sep, value = text.partition("=")
+    if name not in EFFECT_NAMES:
+        raise argparse.ArgumentTypeError(f"unknown effect '{name}' (known: {', '.join(EFFECT_NAMES)})")
+    if not sep:
+        raise argparse.ArgumentTypeError(f"'{text}' is not NAME=VALUE")
+    return name, _float(value)
 
 
 def scenario_from_args(args):
@@ -110,10 +151,84 @@ def cmd_run(args) -> int:
     return 0
 
 
+def cmd_synthesize(args) -> int:
+    from .synthesize import PAPER_DESIGN, Noise, synthesize_campaign
+
+    if args.out.exists():
+        raise Rc1Error(f"{args.out}: already exists; synthesize writes a new campaign folder")
+    design = PAPER_DESIGN
+    if args.trials_per_case:
+        design = [dataclasses.replace(c, trials=args.trials_per_case if c.trials > 1 else c.trials) for c in design]
+    friction = validate_friction(dict(args.friction))
+    campaign = synthesize_campaign(args.out, design=design, friction=friction, effects=Effects(**dict(args.effect)),
+                                   noise=Noise().scaled(args.noise_scale), camera=not args.no_camera, seed=args.seed,
+                                   truth_file=args.truth)
+    print(f"wrote {len(campaign.trials)} trials to {args.out}" + (f"; truth in {args.truth}" if args.truth else ""))
+    return 0
+
+
+def validate_friction(overrides: dict) -> Friction:
+    from .config import Scenario
+
+    friction = dataclasses.replace(Friction(), **overrides)
+    validate(Scenario(friction=friction), where="command line")
+    return friction
+
+
+def cmd_compare(args) -> int:
+    from .compare import compare_campaign
+    from .measurements import load_campaign
+
+    campaign = load_campaign(args.campaign)
+    friction = validate_friction(dict(args.friction))
+
+    def progress(done, total, trial_id):
+        print(f"\r  replayed {done}/{total} trials ({trial_id})", end="", file=sys.stderr, flush=True)
+
+    report = compare_campaign(campaign, friction, workers=args.workers, progress=progress)
+    print(file=sys.stderr)
+    print(f"Simulator error (paper Eq. 6) per trial, {campaign.path}:")
+    print(report.table())
+    print()
+    print(f"{'trial':<16}{'case':<10}{'Eq.6 %':>8}{'yaw-rate fit %':>16}{'camera x/y fit %':>18}{'outcome':>11}")
+    for r in report.trials:
+        cam = "-" if r.camera_fit_pct is None else f"{r.camera_fit_pct['x']:.0f}/{r.camera_fit_pct['y']:.0f}"
+        print(f"{r.trial_id:<16}{r.case:<10}{r.eq6_error_pct:8.1f}{r.yaw_rate_fit_pct:16.1f}{cam:>18}{r.outcome:>11}")
+        if r.circle_diameter_model_m is not None or r.circle_diameter_measured_m is not None:
+            print(f"{'':<16}revolutions model {r.revolutions_model:.2f} / measured {r.revolutions_measured:.2f}; "
+                  f"circle diameter model {r.circle_diameter_model_m} / measured {r.circle_diameter_measured_m}")
+    if args.json:
+        _write_atomically(args.json, lambda p: p.write_text(json.dumps(report.to_json(), indent=2) + "\n"))
+    if args.plots:
+        write_compare_plots(report, campaign, args.plots)
+    return 0
+
+
+def write_compare_plots(report, campaign, folder: Path) -> None:
+    import matplotlib.pyplot as plt
+
+    from .plots import head_path_figure, residuals_figure, yaw_rate_figure
+
+    results = {r.trial_id: r for r in report.trials}
+    for case, trials in campaign.cases().items():
+        name = case.replace("+", "_")
+        runs = [report.runs[t.trial_id] for t in trials]
+        figures = {
+            f"paths_{name}.png": head_path_figure(runs, labels=[t.trial_id for t in trials],
+                                                  measured_final=[t.final_head_xy for t in trials],
+                                                  title=f"case {case}: simulated paths, measured (*) vs predicted (x) ends"),
+            f"yaw_rate_{name}.png": yaw_rate_figure(trials[0], runs[0]),
+            f"residuals_{name}.png": residuals_figure([results[t.trial_id] for t in trials], title=f"case {case}"),
+        }
+        for filename, fig in figures.items():
+            _write_atomically(folder / filename, lambda p, fig=fig: fig.savefig(p, format="png", dpi=110))
+            plt.close(fig)
+
+
 def main(argv=None) -> int:
     args = make_parser().parse_args(argv)
     try:
-        return {"run": cmd_run}[args.command](args)
+        return {"run": cmd_run, "synthesize": cmd_synthesize, "compare": cmd_compare}[args.command](args)
     except Rc1Error as e:
         print(f"rc1 {args.command}: error: {e}", file=sys.stderr)
         return 2

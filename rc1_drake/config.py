@@ -59,6 +59,7 @@ class Servo:
     kp_Nm_per_rad: float = 20.0
     ki_Nm_per_rad_s: float = 5.0
     kd_Nm_s_per_rad: float = 0.2
+    torque_limit_Nm: Optional[float] = None  # None: the SDF's effort limit
 
 
 @dataclasses.dataclass
@@ -73,6 +74,16 @@ class Friction:
 
 
 FRICTION_NAMES = tuple(f.name for f in dataclasses.fields(Friction))
+
+
+@dataclasses.dataclass
+class Effects:
+    """Physical effects beyond the paper's model. All zero is the paper's model."""
+
+    wheel_toe_deg: float = 0.0  # every wheel's rolling direction yawed counter-clockwise from its module's axis
+
+
+EFFECT_NAMES = tuple(f.name for f in dataclasses.fields(Effects))
 
 
 @dataclasses.dataclass
@@ -112,6 +123,7 @@ class Scenario:
     gait: Gait = dataclasses.field(default_factory=Gait)
     servo: Servo = dataclasses.field(default_factory=Servo)
     friction: Friction = dataclasses.field(default_factory=Friction)
+    effects: Effects = dataclasses.field(default_factory=Effects)
     failures: List[Failure] = dataclasses.field(default_factory=list)
     start: Start = dataclasses.field(default_factory=Start)
     stop: Stop = dataclasses.field(default_factory=Stop)
@@ -182,9 +194,12 @@ def validate(s: Scenario, *, where: str = "scenario") -> Scenario:
             if getattr(jg, f) is not None:
                 finite(f"gait.joints[{k}].{f}", getattr(jg, f))
     for f in dataclasses.fields(Servo):
-        finite(f"servo.{f.name}", getattr(s.servo, f.name), nonneg=True)
+        if getattr(s.servo, f.name) is not None:
+            finite(f"servo.{f.name}", getattr(s.servo, f.name), nonneg=True)
     for name in FRICTION_NAMES:
         finite(f"friction.{name}", getattr(s.friction, name), nonneg=True)
+    for name in EFFECT_NAMES:
+        finite(f"effects.{name}", getattr(s.effects, name))
     seen = set()
     for k, fail in enumerate(s.failures):
         if not 1 <= fail.joint <= NUM_JOINTS:

@@ -18,7 +18,7 @@ import dataclasses
 
 import numpy as np
 from pydrake.systems.framework import DiagramBuilder
-from pydrake.systems.primitives import LogVectorOutput, MatrixGain
+from pydrake.systems.primitives import LogVectorOutput, MatrixGain, TrajectorySource
 
 from .config import Scenario
 from .friction import FrictionForces
@@ -33,7 +33,7 @@ class RC1Diagram:
     rc1: RC1Plant
     friction: FrictionForces
     failure_switch: FailureSwitch
-    gait_bias: object  # ConstantVectorSource
+    gait_bias: object  # ConstantVectorSource, or None when the servos follow a joint reference
     state_logger: object
     torque_logger: object
     build_key: tuple
@@ -43,22 +43,29 @@ class RC1Diagram:
         return self.rc1.plant
 
 
-def build_key(scenario: Scenario) -> tuple:
+def build_key(scenario: Scenario, joint_reference=None) -> tuple:
     """The scenario fields a built Diagram depends on; equal keys can share a Diagram."""
-    amp, omega, phase, _ = serpenoid_parameters(scenario.gait)
-    n = scenario.numerics
-    return (
-        tuple(amp), tuple(omega), tuple(phase),
-        dataclasses.astuple(scenario.servo),
-        n.time_step_s, n.log_period_s,
-    )
+    if joint_reference is None:
+        amp, omega, phase, _ = serpenoid_parameters(scenario.gait)
+        source = (tuple(amp), tuple(omega), tuple(phase))
+    else:
+        source = ("joint_reference", id(joint_reference))
+    s, n = scenario.servo, scenario.numerics
+    return source + (s.kp_Nm_per_rad, s.ki_Nm_per_rad_s, s.kd_Nm_s_per_rad, n.time_step_s, n.log_period_s)
 
 
-def build_diagram(scenario: Scenario) -> RC1Diagram:
+def build_diagram(scenario: Scenario, *, joint_reference=None) -> RC1Diagram:
+    """The Diagram for `scenario`; with `joint_reference` (a Drake trajectory of the 13 joint angles,
+    e.g. measured ones) the servos follow it instead of the serpenoid."""
     builder = DiagramBuilder()
     rc1 = add_rc1_plant(builder, time_step=scenario.numerics.time_step_s)
     plant = rc1.plant
-    desired_state, bias = add_gait_source(builder, scenario.gait)
+    if joint_reference is None:
+        desired_state, bias = add_gait_source(builder, scenario.gait)
+    else:
+        source = builder.AddSystem(TrajectorySource(joint_reference, output_derivative_order=1))
+        source.set_name("joint_reference")
+        desired_state, bias = source.get_output_port(), None
     power, servo_torque = add_servos(builder, rc1, desired_state, scenario.servo, scenario.numerics.time_step_s)
 
     friction = builder.AddSystem(
@@ -96,5 +103,5 @@ def build_diagram(scenario: Scenario) -> RC1Diagram:
         gait_bias=bias,
         state_logger=state_logger,
         torque_logger=torque_logger,
-        build_key=build_key(scenario),
+        build_key=build_key(scenario, joint_reference),
     )

@@ -107,17 +107,27 @@ def implicit_friction_force(jac_long, jac_lat, joint_damping, mass_matrix, momen
 
 
 # Parameter layout of FrictionForces: the paper's five coefficients, eps, then per joint 1 if it
-# has failed (its viscous friction acts), then the normal force of each wheel.
+# has failed (its viscous friction acts), then per wheel its normal force, then per wheel its toe
+# angle (rad, counter-clockwise, added to the SDF's wheel yaw; 0 in the paper's model).
 C_JOINT, MU_LAT, MU_LONG, C_LAT, C_LONG, EPS = range(6)
 FAILED = slice(6, 6 + NUM_JOINTS)
-NORMAL = slice(6 + NUM_JOINTS, None)
+PER_WHEEL = 6 + NUM_JOINTS
+
+
+def normal_slice(num_wheels: int) -> slice:
+    return slice(PER_WHEEL, PER_WHEEL + num_wheels)
+
+
+def toe_slice(num_wheels: int) -> slice:
+    return slice(PER_WHEEL + num_wheels, PER_WHEEL + 2 * num_wheels)
 
 
 @jit
 def _friction_step(x, other_force, mass_matrix, dt, params, newton_steps, joint_in_parent, joint_in_child,
                    wheel_module, wheel_offset, wheel_toe):
-    _, direction, jacobian = _wheel_kinematics(x, joint_in_parent, joint_in_child, wheel_module, wheel_offset,
-                                               wheel_toe)
+    nw = wheel_module.shape[0]
+    toe = wheel_toe * np.exp(1j * params[PER_WHEEL + nw : PER_WHEEL + 2 * nw])
+    _, direction, jacobian = _wheel_kinematics(x, joint_in_parent, joint_in_child, wheel_module, wheel_offset, toe)
     local = np.conj(direction).reshape(-1, 1) * jacobian  # rows: v_long + i v_lat of each wheel
     jac_long = np.ascontiguousarray(local.real)
     jac_lat = np.ascontiguousarray(local.imag)
@@ -127,7 +137,7 @@ def _friction_step(x, other_force, mass_matrix, dt, params, newton_steps, joint_
     joint_damping[3:] = params[C_JOINT] * params[FAILED]
     return implicit_friction_force(jac_long, jac_lat, joint_damping, mass_matrix, mass_matrix @ v + dt * other_force,
                                    v, dt, params[MU_LONG], params[MU_LAT], params[C_LONG], params[C_LAT],
-                                   params[NORMAL], params[EPS], newton_steps)
+                                   params[PER_WHEEL : PER_WHEEL + nw], params[EPS], newton_steps)
 
 
 class FrictionForces(LeafSystem):
@@ -149,9 +159,11 @@ class FrictionForces(LeafSystem):
         self._geometry = geometry.arrays
         self._dt = plant.time_step()
         nq = plant.num_positions()
+        self._num_wheels = len(geometry.wheel_module)
         normal = geometry.module_mass[geometry.wheel_module] * GRAVITY_M_S2
         self._param_index = self.DeclareNumericParameter(
-            BasicVector(np.concatenate([self.pack(friction, sgn_smoothing_m_s), np.zeros(NUM_JOINTS), normal]))
+            BasicVector(np.concatenate([self.pack(friction, sgn_smoothing_m_s), np.zeros(NUM_JOINTS), normal,
+                                        np.zeros(self._num_wheels)]))
         )
         self.DeclareVectorInputPort("plant_state", 2 * nq)
         self.DeclareVectorInputPort("servo_torque", NUM_JOINTS)
@@ -163,13 +175,17 @@ class FrictionForces(LeafSystem):
                          sgn_smoothing_m_s])
 
     def parameters(self, context) -> np.ndarray:
-        """The mutable parameter vector (layout: C_JOINT .. EPS, FAILED, NORMAL) in `context`."""
+        """The mutable parameter vector (layout above: C_JOINT .. EPS, FAILED, normals, toes) in `context`."""
         return context.get_mutable_numeric_parameter(self._param_index).get_mutable_value()
 
     def set_friction(self, context, friction: Friction, sgn_smoothing_m_s: float) -> None:
         if not sgn_smoothing_m_s > 0:
             raise ValueError("the implicit friction needs sgn_smoothing_m_s > 0")
         self.parameters(context)[: EPS + 1] = self.pack(friction, sgn_smoothing_m_s)
+
+    def set_wheel_toe(self, context, toe_rad) -> None:
+        """Yaw every wheel (or each, given W angles) by toe_rad from its SDF direction."""
+        self.parameters(context)[toe_slice(self._num_wheels)] = toe_rad
 
     def _calc_generalized_force(self, context, output):
         x = self.get_input_port(0).Eval(context)

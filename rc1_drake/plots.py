@@ -6,16 +6,19 @@ import matplotlib
 
 matplotlib.use("Agg")  # files only; notebooks set their own backend before importing pyplot
 import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
 
 from .kinematics import module_positions, module_yaws  # noqa: E402
 from .metrics import circling_fit  # noqa: E402
 
 
-def head_path_figure(runs, *, labels=None, title=None):
-    """Head paths in the style of paper Figs. 8 and 10.
+def head_path_figure(runs, *, labels=None, title=None, measured_final=None):
+    """Head paths in the style of paper Figs. 8 and 10-13.
 
     Small circles: the modules at t = 0; dashed line: the head path; a cross at the end; the
     finish line x = line_x_m when the scenario has one; for a circling run, its fitted mean circle.
+    With `measured_final` (one [x, y] per run), a star at each measured final head position joined
+    to the run's predicted one.
     """
     fig, ax = plt.subplots(figsize=(7, 5))
     runs = list(runs)
@@ -25,9 +28,13 @@ def head_path_figure(runs, *, labels=None, title=None):
     phi0 = module_yaws(x0[2], x0[3:16])
     p0 = module_positions(complex(x0[0], x0[1]), phi0, first.geometry)
     ax.plot(p0.real, p0.imag, "o", mfc="none", color="k", ms=6, label="start configuration")
-    for run, label in zip(runs, labels, strict=True):
+    for k, (run, label) in enumerate(zip(runs, labels, strict=True)):
         (line,) = ax.plot(run.head_xy[:, 0], run.head_xy[:, 1], "--", label=label or "simulated head path")
         ax.plot(*run.head_xy[-1], "x", color=line.get_color(), ms=9, mew=2)
+        if measured_final is not None:
+            m = measured_final[k]
+            ax.plot(*m, "*", color=line.get_color(), ms=12)
+            ax.plot([m[0], run.head_xy[-1, 0]], [m[1], run.head_xy[-1, 1]], "-", color=line.get_color(), lw=1)
         fit = circling_fit(run.head_xy, run.head_yaw) if run.stop_reason == "circling" else None
         if fit is not None:
             centre, radius = fit
@@ -41,8 +48,46 @@ def head_path_figure(runs, *, labels=None, title=None):
     ax.set_ylabel("y (m)")
     ax.set_aspect("equal", adjustable="datalim")
     ax.grid(True, alpha=0.3)
+    if measured_final is not None:
+        ax.plot([], [], "k*", ms=10, label="measured final head position")
     ax.legend(loc="best", fontsize=8)
     if title:
         ax.set_title(title)
+    fig.tight_layout()
+    return fig
+
+
+def yaw_rate_figure(trial, run, *, title=None):
+    """Head angular velocity against time, measured and simulated (paper Fig. 9)."""
+    fig, ax = plt.subplots(figsize=(8, 3.5))
+    ax.plot(trial.t - trial.t[0], trial.head_yaw_rate, color="0.5", lw=1, label="measured (head IMU)")
+    ax.plot(run.t, run.head_yaw_rate, "--", lw=1.2, label="simulated")
+    ax.set_xlabel("t (s)")
+    ax.set_ylabel("head yaw rate (rad/s)")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=8)
+    ax.set_title(title or f"{trial.trial_id}: head angular velocity")
+    fig.tight_layout()
+    return fig
+
+
+def residuals_figure(results, *, title=None):
+    """Residuals over time for the trials of one case: head yaw rate, and head position where a
+    camera saw it (measured - simulated)."""
+    camera = any(r.position_residual is not None for r in results)
+    fig, axes = plt.subplots(2 if camera else 1, 1, figsize=(8, 5 if camera else 3), sharex=True, squeeze=False)
+    for r in results:
+        axes[0, 0].plot(r.t, r.yaw_rate_residual, lw=0.8, label=r.trial_id)
+        if camera and r.position_residual is not None:
+            axes[1, 0].plot(r.t, np.linalg.norm(r.position_residual, axis=1), lw=0.8, label=r.trial_id)
+    axes[0, 0].set_ylabel("yaw rate residual (rad/s)")
+    if camera:
+        axes[1, 0].set_ylabel("|head position residual| (m)")
+    axes[-1, 0].set_xlabel("t (s)")
+    for ax in axes[:, 0]:
+        ax.grid(True, alpha=0.3)
+    axes[0, 0].legend(fontsize=7, ncol=3)
+    if title:
+        axes[0, 0].set_title(title)
     fig.tight_layout()
     return fig

@@ -24,25 +24,29 @@ from .gait import serpenoid, serpenoid_parameters
 from .kinematics import ChainGeometry, module_motion, module_yaws
 
 
-def initial_state(scenario: Scenario, geometry: ChainGeometry) -> np.ndarray:
-    """Plant state [x, y, yaw, q; vx, vy, w, q_dot] at t = 0 (see the module docstring)."""
-    q, q_dot = serpenoid(0.0, scenario.gait)
-    relative = module_yaws(0.0, q)  # module yaws relative to the head's
-    head_yaw = math.radians(scenario.start.heading_deg) - relative.mean()
+def rest_state(head_xy, head_yaw: float, q, q_dot, geometry: ChainGeometry) -> np.ndarray:
+    """Plant state with the given head pose and joint motion, and the body otherwise at rest:
+    the head's velocity is chosen so that the centre of mass does not move and the mean module yaw
+    does not turn."""
     head_rate = -module_yaws(0.0, q_dot).mean()
-    # Module velocities with the head centre at rest, then shift so the centre of mass is at rest.
-    x = np.concatenate([[scenario.start.x_m, scenario.start.y_m, head_yaw], q, [0.0, 0.0, head_rate], q_dot])
-    _, _, _, v = module_motion(x, geometry)
+    x = np.concatenate([head_xy, [head_yaw], q, [0.0, 0.0, head_rate], q_dot])
+    _, _, _, v = module_motion(x, geometry)  # module velocities with the head centre at rest
     m = geometry.module_mass
     head_v = -(m * v).sum() / m.sum()
     x[16:18] = head_v.real, head_v.imag
     return x
 
 
-def configure_context(built: RC1Diagram, context, scenario: Scenario) -> None:
-    """Reset `context` to t = 0 and write the per-run parts of `scenario` into it."""
-    if build_key(scenario) != built.build_key:
-        raise ValueError("scenario needs a different Diagram (gait, servo gains or numerics differ)")
+def initial_state(scenario: Scenario, geometry: ChainGeometry) -> np.ndarray:
+    """Plant state [x, y, yaw, q; vx, vy, w, q_dot] at t = 0 (see the module docstring)."""
+    q, q_dot = serpenoid(0.0, scenario.gait)
+    head_yaw = math.radians(scenario.start.heading_deg) - module_yaws(0.0, q).mean()
+    return rest_state([scenario.start.x_m, scenario.start.y_m], head_yaw, q, q_dot, geometry)
+
+
+def configure_context(built: RC1Diagram, context, scenario: Scenario, initial=None) -> None:
+    """Reset `context` to t = 0 and write the per-run parts of `scenario` into it; the plant starts
+    from `initial` if given, else from initial_state(scenario)."""
     built.diagram.SetDefaultContext(context)
     context.SetTime(0.0)
     built.friction.set_friction(
@@ -50,14 +54,18 @@ def configure_context(built: RC1Diagram, context, scenario: Scenario) -> None:
         scenario.friction,
         scenario.numerics.sgn_smoothing_m_s,
     )
-    built.failure_switch.reset(context)
+    built.friction.set_wheel_toe(built.friction.GetMyMutableContextFromRoot(context),
+                                 math.radians(scenario.effects.wheel_toe_deg))
+    built.failure_switch.reset(context, scenario.servo.torque_limit_Nm)
     for failure in scenario.failures:
         if failure.time_s == 0.0:
             built.failure_switch.fail(context, failure)
-    bias = serpenoid_parameters(scenario.gait)[3]
-    built.gait_bias.get_mutable_source_value(built.gait_bias.GetMyMutableContextFromRoot(context)).SetFromVector(bias)
+    if built.gait_bias is not None:
+        bias = serpenoid_parameters(scenario.gait)[3]
+        built.gait_bias.get_mutable_source_value(built.gait_bias.GetMyMutableContextFromRoot(context)).SetFromVector(bias)
     plant_context = built.plant.GetMyMutableContextFromRoot(context)
-    built.plant.SetPositionsAndVelocities(plant_context, initial_state(scenario, built.rc1.geometry))
+    x0 = initial_state(scenario, built.rc1.geometry) if initial is None else initial
+    built.plant.SetPositionsAndVelocities(plant_context, x0)
     for logger in (built.state_logger, built.torque_logger):
         logger.FindMutableLog(context).Clear()
 
@@ -98,14 +106,18 @@ class Run:
 class Session:
     """One built Diagram with its Simulator, reused for every run whose build_key matches."""
 
-    def __init__(self, scenario: Scenario):
-        self.built = build_diagram(scenario)
+    def __init__(self, scenario: Scenario, *, joint_reference=None):
+        self.built = build_diagram(scenario, joint_reference=joint_reference)
         self.simulator = Simulator(self.built.diagram)
+        self.joint_reference = joint_reference
 
-    def simulate(self, scenario: Scenario) -> Run:
+    def simulate(self, scenario: Scenario, *, initial=None) -> Run:
+        """Run `scenario` (from `initial`, a plant state, if given) on this Session's Diagram."""
         built, simulator = self.built, self.simulator
+        if build_key(scenario, self.joint_reference) != built.build_key:
+            raise ValueError("scenario needs a different Diagram (gait, servo gains or numerics differ)")
         context = simulator.get_mutable_context()
-        configure_context(built, context, scenario)
+        configure_context(built, context, scenario, initial)
         plant = built.plant
         plant_context = plant.GetMyContextFromRoot(context)
         yaw0 = plant.GetPositions(plant_context)[2]

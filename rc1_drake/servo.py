@@ -38,9 +38,10 @@ class FailureSwitch:
         self._power = power_system
         self._friction = friction_system
 
-    def reset(self, root_context) -> None:
-        """Every servo powered, no failed joint."""
-        self._power_parameter(root_context).SetFromVector(self._effort)
+    def reset(self, root_context, torque_limit=None) -> None:
+        """Every servo powered (to the SDF's effort limit, or `torque_limit`), no failed joint."""
+        power = self._effort if torque_limit is None else np.full_like(self._effort, torque_limit)
+        self._power_parameter(root_context).SetFromVector(power)
         self._failed(root_context)[:] = 0.0
 
     def fail(self, root_context, failure: Failure) -> None:

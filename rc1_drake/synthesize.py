@@ -1,0 +1,125 @@
+"""Synthetic experiments: campaigns in the measurement format, made by a known truth model.
+
+The truth is the Drake model driven by the gait (servos, failures), with chosen friction, optional
+extra physical effects, trial-to-trial variation (start phase and pose) and sensor noise
+(potentiometers, head IMU, overhead camera, the hand-measured final position). Everything random
+comes from one seed.
+"""
+
+import dataclasses
+import json
+import math
+from pathlib import Path
+from typing import List
+
+import numpy as np
+
+from .config import Effects, Failure, Friction, Gait, Numerics, Scenario, Start, Stop
+from .diagram import build_key
+from .measurements import Campaign, Stop as TrialStop, Trial, write_trial
+from .protocol import Session
+
+
+@dataclasses.dataclass
+class Case:
+    failed_joints: List[int]
+    trials: int
+    bias_deg: float = 0.0
+
+
+@dataclasses.dataclass
+class Noise:
+    """Standard deviations of the sensors (and camera dropouts); scale them all with `scaled`."""
+
+    potentiometer_deg: float = 0.25
+    imu_rad_s: float = 0.02
+    imu_bias_rad_s: float = 0.01  # per trial, constant
+    camera_m: float = 0.005
+    camera_yaw_deg: float = 0.5
+    camera_dropout: float = 0.05  # fraction of samples where the camera misses the head
+    hand_m: float = 0.01  # the final position, measured by hand
+
+    def scaled(self, factor: float) -> "Noise":
+        return dataclasses.replace(self, **{f.name: getattr(self, f.name) * factor for f in dataclasses.fields(self)
+                                           if f.name != "camera_dropout"})
+
+
+@dataclasses.dataclass
+class Variation:
+    """Trial-to-trial variation of the start (standard deviations)."""
+
+    phase_deg: float = 5.0
+    position_m: float = 0.01
+    heading_deg: float = 1.0
+
+
+# The paper's campaign (section 4, Table 2) plus one joint-2 trial. The bias straightens a joint-7
+# failure in this model (README).
+PAPER_DESIGN = [Case([], 5), Case([7], 5), Case([13], 5), Case([7], 5, bias_deg=-0.9), Case([2], 1)]
+
+
+def synthesize_campaign(folder, *, design=PAPER_DESIGN, friction=Friction(), effects=Effects(), noise=Noise(),
+                        variation=Variation(), seed=0, camera=True, stop=Stop(), sample_period_s=0.01,
+                        numerics=None, truth_file=None, name=None) -> Campaign:
+    """Write a campaign to `folder` and, if `truth_file` is given, what made it."""
+    rng = np.random.default_rng(seed)
+    numerics = dataclasses.replace(numerics or Numerics(), log_period_s=sample_period_s)
+    folder = Path(folder)
+    trials, sessions = [], {}
+    for case in design:
+        for k in range(case.trials):
+            label = ("j" + "_".join(map(str, case.failed_joints)) if case.failed_joints else "nominal") + (
+                "_bias" if case.bias_deg else "")
+            scenario = Scenario(
+                gait=Gait(bias_deg=case.bias_deg, phase_offset_deg=float(rng.normal(0, variation.phase_deg))),
+                friction=friction, effects=effects, failures=[Failure(joint=j) for j in case.failed_joints],
+                start=Start(x_m=float(rng.normal(0, variation.position_m)), y_m=float(rng.normal(0, variation.position_m)),
+                            heading_deg=float(rng.normal(0, variation.heading_deg))),
+                stop=stop, numerics=numerics)
+            key = build_key(scenario)
+            if key not in sessions:
+                sessions[key] = Session(scenario)
+            run = sessions[key].simulate(scenario)
+            trial = _measure(run, scenario, f"{label}_{k + 1}", noise, rng, camera, sample_period_s)
+            write_trial(folder, trial.trial_id, trial)
+            trials.append(trial)
+    if truth_file is not None:
+        truth = {
+            "campaign": str(name or folder.name), "seed": seed,
+            "friction": dataclasses.asdict(friction), "effects": dataclasses.asdict(effects),
+            "noise": dataclasses.asdict(noise), "variation": dataclasses.asdict(variation),
+            "design": [dataclasses.asdict(c) for c in design],
+            "numerics": dataclasses.asdict(numerics),
+        }
+        Path(truth_file).write_text(json.dumps(truth, indent=2) + "\n")
+    return Campaign(path=folder, trials=trials)
+
+
+def _measure(run, scenario, trial_id, noise: Noise, rng, camera, period) -> Trial:
+    """What the robot's sensors and the experimenter would have recorded of `run`."""
+    on_grid = np.abs(run.t / period - np.round(run.t / period)) < 1e-6  # drop the off-grid stop instant
+    t = run.t[on_grid]
+    n = len(t)
+    q = run.q[on_grid] + rng.normal(0, math.radians(noise.potentiometer_deg), (n, 13))
+    for f in scenario.failures:
+        q[:, f.joint - 1] = np.nan
+    rate = run.head_yaw_rate[on_grid] + rng.normal(0, noise.imu_bias_rad_s) + rng.normal(0, noise.imu_rad_s, n)
+    cam = None
+    if camera:
+        cam = np.column_stack([run.head_xy[on_grid] + rng.normal(0, noise.camera_m, (n, 2)),
+                               run.head_yaw[on_grid] + rng.normal(0, math.radians(noise.camera_yaw_deg), n)])
+        cam[rng.random(n) < noise.camera_dropout] = np.nan
+    if run.stop_reason == "crossed":
+        stop = TrialStop("line", scenario.stop.line_x_m)
+    elif run.stop_reason == "circling":
+        stop = TrialStop("revolutions", scenario.stop.revolutions)
+    else:
+        stop = TrialStop("time", scenario.stop.time_limit_s)
+    return Trial(
+        trial_id=trial_id, failed_joints=scenario.failed_joints,
+        gait=dataclasses.replace(scenario.gait, joints=[]), stop=stop,
+        initial_head_pose=run.state[0, :3].copy(),
+        final_head_xy=run.head_xy[-1] + rng.normal(0, noise.hand_m, 2),
+        t=t, q=q, head_yaw_rate=rate, camera=cam,
+        notes="synthetic (rc1 synthesize)",
+    )
