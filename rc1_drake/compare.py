@@ -148,11 +148,12 @@ def _replay_and_score(trial: Trial, friction, effects, numerics):
     return score_trial(trial, run), run
 
 
-def compare_campaign(campaign: Campaign, friction: Friction = Friction(), effects=None, numerics=None,
+def compare_campaign(campaign: Campaign, friction: Optional[Friction] = None, effects=None, numerics=None,
                      workers: Optional[int] = None, progress=None) -> CampaignReport:
     """Replay every trial with `friction` (and `effects`) and score it; trials run in parallel on
     `workers` processes (default: every core), each building its own Diagram."""
     workers = workers or os.cpu_count() or 1
+    friction = friction or Friction()
     trials = campaign.trials
     if workers == 1 or len(trials) == 1:
         outputs = []

@@ -58,10 +58,13 @@ class Variation:
 PAPER_DESIGN = [Case([], 5), Case([7], 5), Case([13], 5), Case([7], 5, bias_deg=-0.9), Case([2], 1)]
 
 
-def synthesize_campaign(folder, *, design=PAPER_DESIGN, friction=Friction(), effects=Effects(), noise=Noise(),
-                        variation=Variation(), seed=0, camera=True, stop=Stop(), sample_period_s=0.01,
-                        numerics=None, truth_file=None, name=None) -> Campaign:
-    """Write a campaign to `folder` and, if `truth_file` is given, what made it."""
+def synthesize_campaign(folder, *, design=PAPER_DESIGN, friction=None, effects=None, noise=None, variation=None,
+                        seed=0, camera=True, stop=None, sample_period_s=0.01, numerics=None, truth_file=None,
+                        name=None) -> Campaign:
+    """Write a campaign to `folder` and, if `truth_file` is given, what made it. Unset arguments take
+    their defaults: the paper's friction, no effect, Noise(), Variation(), Stop()."""
+    friction, effects = friction or Friction(), effects or Effects()
+    noise, variation, stop = noise or Noise(), variation or Variation(), stop or Stop()
     rng = np.random.default_rng(seed)
     numerics = dataclasses.replace(numerics or Numerics(), log_period_s=sample_period_s)
     folder = Path(folder)
