@@ -9,8 +9,8 @@ import os
 import sys
 from pathlib import Path
 
-from .config import (DEFAULT_SCENARIOS, EFFECT_NAMES, FRICTION_NAMES, Effects, Failure, Friction, Rc1Error,
-                     load_scenario, validate)
+from .config import (DEFAULT_SCENARIOS, EFFECT_NAMES, FAILURE_MODES, FRICTION_NAMES, Effects, Failure, Friction,
+                     Rc1Error, Stop, load_scenario, validate)
 
 
 class _Parser(argparse.ArgumentParser):
@@ -84,7 +84,41 @@ def make_parser() -> argparse.ArgumentParser:
     cmp.add_argument("--json", type=Path, metavar="PATH", help="write every per-trial and per-case number")
     cmp.add_argument("--plots", type=Path, metavar="DIR", help="write figures in the paper's styles")
     cmp.add_argument("--workers", type=_positive_int, metavar="N", help="processes (default: every core)")
+
+    swp = sub.add_parser("sweep", help="fail each joint in turn (and none), several trials each")
+    swp.add_argument("--out", type=Path, required=True, metavar="DIR",
+                     help="results folder: results.jsonl streams a row per run; rerunning resumes")
+    swp.add_argument("--trials", type=_positive_int, default=5, metavar="N", help="trials per case (default 5)")
+    swp.add_argument("--joints", type=_joint_list, default=list(range(1, 14)), metavar="LIST",
+                     help="failed joints, e.g. 1-13 or 2,7,13 (default 1-13)")
+    swp.add_argument("--mode", choices=FAILURE_MODES, default="free", help="failure mode (default free, as the paper)")
+    swp.add_argument("--fail-time-s", type=_float, default=0.0, metavar="T", help="when the joints fail (default 0)")
+    swp.add_argument("--double", action="store_true", help="every pair of the joints instead of one at a time")
+    swp.add_argument("--no-nominal", action="store_true", help="leave out the no-failure case")
+    swp.add_argument("--friction", type=_friction_override, action="append", default=[], metavar="NAME=VALUE")
+    swp.add_argument("--friction-spread", type=_float, default=0.0, metavar="F",
+                     help="draw each friction coefficient within +-F (a fraction) of its value per run")
+    swp.add_argument("--bias-deg", type=_float, default=0.0, metavar="B", help="bias on every joint, degrees")
+    swp.add_argument("--time-limit-s", type=_float, default=30.0, metavar="T")
+    swp.add_argument("--seed", type=int, default=0)
+    swp.add_argument("--workers", type=_positive_int, metavar="N", help="local processes (default: every core)")
+    swp.add_argument("--scheduler", metavar="ADDRESS", help="a Dask scheduler, e.g. tcp://10.0.0.5:8786")
     return parser
+
+
+def _joint_list(text: str) -> list:
+    joints = []
+    for part in text.split(","):
+        lo, sep, hi = part.partition("-")
+        try:
+            span = range(int(lo), int(hi) + 1) if sep else [int(lo)]
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"'{text}' is not a joint list such as 1-13 or 2,7,13") from None
+        for j in span:
+            if not 1 <= j <= 13:
+                raise argparse.ArgumentTypeError(f"joint {j} does not exist (joints are 1..13)")
+            joints.append(j)
+    return sorted(set(joints))
 
 
 def _positive_int(text: str) -> int:
@@ -225,10 +259,53 @@ def write_compare_plots(report, campaign, folder: Path) -> None:
             plt.close(fig)
 
 
+def cmd_sweep(args) -> int:
+    import matplotlib.pyplot as plt
+
+    from .executor import make_executor
+    from .plots import paths_grid_figure, sweep_figure
+    from .sweep import (double_failure_sets, format_table, half_summary, make_jobs, run_sweep,
+                        single_failure_sets, summarize_sweep)
+
+    if args.double:
+        sets = ([[]] if not args.no_nominal else []) + double_failure_sets(args.joints, mode=args.mode)
+        for s in sets:
+            for f in s:
+                f.time_s = args.fail_time_s
+    else:
+        sets = single_failure_sets(args.joints, mode=args.mode, time_s=args.fail_time_s,
+                                   include_none=not args.no_nominal)
+    friction = validate_friction(dict(args.friction))
+    jobs = make_jobs(failure_sets=sets, trials=args.trials, seed=args.seed, friction=friction,
+                     friction_spread=args.friction_spread, bias_deg=args.bias_deg,
+                     stop=Stop(time_limit_s=args.time_limit_s))
+    for job in jobs[:1] + jobs[-1:]:
+        validate(job.scenario, where="command line")
+    with make_executor(workers=args.workers, scheduler=args.scheduler) as executor:
+        rows = run_sweep(jobs, args.out / "results.jsonl", executor=executor)
+    table = summarize_sweep(rows)
+    halves = half_summary(table)
+    print(format_table(table))
+    for name, h in halves.items():
+        share = "-" if h["crossed_fraction"] is None else f"{100 * h['crossed_fraction']:.0f}%"
+        drift = "-" if h["mean_abs_drift_per_m"] is None else f"{h['mean_abs_drift_per_m']:.3f}"
+        print(f"{name}: {h['runs']} runs, {share} reached the line, mean |drift| per metre {drift}")
+    errors = [r for r in rows if r["status"] != "ok"]
+    for r in errors:
+        print(f"error in {r['label']} trial {r['trial']}: {r['error']}", file=sys.stderr)
+    _write_atomically(args.out / "summary.json",
+                      lambda p: p.write_text(json.dumps({"cases": table, "halves": halves}, indent=2) + "\n"))
+    for name, fig in (("outcome_drift.png", sweep_figure(table)), ("paths.png", paths_grid_figure(rows))):
+        _write_atomically(args.out / name, lambda p, fig=fig: fig.savefig(p, format="png", dpi=110))
+        plt.close(fig)
+    return 0
+
+
 def main(argv=None) -> int:
     args = make_parser().parse_args(argv)
     try:
-        return {"run": cmd_run, "synthesize": cmd_synthesize, "compare": cmd_compare}[args.command](args)
+        return {"run": cmd_run, "synthesize": cmd_synthesize, "compare": cmd_compare,
+                "sweep": cmd_sweep}[args.command](args)
     except Rc1Error as e:
         print(f"rc1 {args.command}: error: {e}", file=sys.stderr)
         return 2

@@ -3,14 +3,13 @@ measure how well the signals fit over time."""
 
 import dataclasses
 import math
-import multiprocessing
 import os
-from concurrent.futures import ProcessPoolExecutor
 from typing import List, Optional
 
 import numpy as np
 
 from .config import Friction
+from .executor import make_executor
 from .measurements import Campaign, Trial
 from .metrics import circle_diameter, revolutions
 from .replay import Replayer, tracking_rms_deg
@@ -162,8 +161,7 @@ def compare_campaign(campaign: Campaign, friction: Optional[Friction] = None, ef
             if progress:
                 progress(k + 1, len(trials), trial.trial_id)
     else:
-        context = multiprocessing.get_context("spawn")  # Diagrams do not survive a fork or a pickle
-        with ProcessPoolExecutor(max_workers=min(workers, len(trials)), mp_context=context) as pool:
+        with make_executor(workers=min(workers, len(trials))) as pool:
             futures = [pool.submit(_replay_and_score, trial, friction, effects, numerics) for trial in trials]
             outputs = []
             for k, (trial, future) in enumerate(zip(trials, futures, strict=True)):

@@ -15,7 +15,7 @@ REPO_ROOT = Path(__file__).resolve().parent.parent
 DEFAULT_SCENARIOS = REPO_ROOT / "scenarios" / "rc1.yaml"
 NUM_JOINTS = 13
 JOINT_LIMIT_DEG = 38.0
-FAILURE_MODES = ("free",)
+FAILURE_MODES = ("free", "locked", "weak")
 
 
 class Rc1Error(Exception):
@@ -88,9 +88,14 @@ EFFECT_NAMES = tuple(f.name for f in dataclasses.fields(Effects))
 
 @dataclasses.dataclass
 class Failure:
+    """A joint failing at time_s. Modes: `free` (the paper's: the servo is unpowered, only c_joint and
+    the joint limits act), `locked` (held at the angle it had when it failed, as in Mehta et al.),
+    `weak` (the servo still tracks, with its torque limited to weak_torque_Nm)."""
+
     joint: int = 0  # 1-based
     time_s: float = 0.0
-    mode: str = "free"  # free: the servo is unpowered; only c_joint and the joint limits act
+    mode: str = "free"
+    weak_torque_Nm: float = 0.4
 
 
 @dataclasses.dataclass
@@ -208,6 +213,7 @@ def validate(s: Scenario, *, where: str = "scenario") -> Scenario:
             bad(f"failures[{k}].joint", f"joint {fail.joint} is listed twice")
         seen.add(fail.joint)
         finite(f"failures[{k}].time_s", fail.time_s, nonneg=True)
+        finite(f"failures[{k}].weak_torque_Nm", fail.weak_torque_Nm, nonneg=True)
         if fail.mode not in FAILURE_MODES:
             bad(f"failures[{k}].mode", f"unknown mode '{fail.mode}' (known: {', '.join(FAILURE_MODES)})")
     finite("start.x_m", s.start.x_m)

@@ -106,10 +106,13 @@ def implicit_friction_force(jac_long, jac_lat, joint_damping, mass_matrix, momen
     return (mass_matrix @ v_next - momentum_free) / dt
 
 
-# Parameter layout of FrictionForces: the paper's five coefficients, eps, then per joint 1 if it
-# has failed (its viscous friction acts), then per wheel its normal force, then per wheel its toe
-# angle (rad, counter-clockwise, added to the SDF's wheel yaw; 0 in the paper's model).
+# Parameter layout of FrictionForces: the paper's five coefficients, eps, then per joint its state
+# (0 working, 1 failed free: its viscous friction acts, 2 locked: the plant holds it, and the solve
+# predicts so), then per wheel its normal force, then per wheel its toe angle (rad, counter-clockwise,
+# added to the SDF's wheel yaw; 0 in the paper's model).
 C_JOINT, MU_LAT, MU_LONG, C_LAT, C_LONG, EPS = range(6)
+WORKING, FREE, LOCKED = 0.0, 1.0, 2.0
+LOCKED_DAMPING = 1e4  # N m s/rad: in the prediction only, a locked joint barely moves
 FAILED = slice(6, 6 + NUM_JOINTS)
 PER_WHEEL = 6 + NUM_JOINTS
 
@@ -134,7 +137,8 @@ def _friction_step(x, other_force, mass_matrix, dt, params, newton_steps, joint_
     nv = x.shape[0] // 2
     v = np.ascontiguousarray(x[nv:])
     joint_damping = np.zeros(nv)
-    joint_damping[3:] = params[C_JOINT] * params[FAILED]
+    state = params[FAILED]
+    joint_damping[3:] = np.where(state == FREE, params[C_JOINT], np.where(state == LOCKED, LOCKED_DAMPING, 0.0))
     return implicit_friction_force(jac_long, jac_lat, joint_damping, mass_matrix, mass_matrix @ v + dt * other_force,
                                    v, dt, params[MU_LONG], params[MU_LAT], params[C_LONG], params[C_LAT],
                                    params[PER_WHEEL : PER_WHEEL + nw], params[EPS], newton_steps)

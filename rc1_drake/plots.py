@@ -91,3 +91,57 @@ def residuals_figure(results, *, title=None):
         axes[0, 0].set_title(title)
     fig.tight_layout()
     return fig
+
+
+def sweep_figure(table):
+    """Outcome and lateral drift per metre travelled against the failed joint (single failures)."""
+    singles = sorted((t for t in table if len(t["failed_joints"]) == 1), key=lambda t: t["failed_joints"][0])
+    nominal = next((t for t in table if t["label"] == "none"), None)
+    joints = [t["failed_joints"][0] for t in singles]
+    fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
+    bottom = np.zeros(len(singles))
+    for outcome, color in (("crossed", "tab:green"), ("circling", "tab:red"), ("timed_out", "tab:gray")):
+        share = np.array([t["outcomes"].get(outcome, 0) / max(t["runs"] - t["errors"], 1) for t in singles])
+        ax1.bar(joints, share, bottom=bottom, color=color, label=outcome)
+        bottom += share
+    ax1.set_ylabel("share of runs")
+    ax1.legend(fontsize=8, ncol=3)
+    drift = [np.nan if t["drift_per_m"] is None else t["drift_per_m"] for t in singles]
+    sd = [0.0 if t["drift_per_m_sd"] is None else t["drift_per_m_sd"] for t in singles]
+    ax2.errorbar(joints, drift, yerr=sd, fmt="o-", capsize=3, label="failed joint")
+    if nominal and nominal["drift_per_m"] is not None:
+        ax2.axhline(nominal["drift_per_m"], color="k", ls="--", lw=1, label="no failure")
+    ax2.axhline(0.0, color="k", lw=0.5)
+    ax2.set_ylabel("lateral drift per metre")
+    ax2.set_xlabel("failed joint (1 = next to the head)")
+    ax2.set_xticks(range(1, 14))
+    ax2.legend(fontsize=8)
+    ax2.grid(True, alpha=0.3)
+    fig.tight_layout()
+    return fig
+
+
+def paths_grid_figure(rows, *, line_x_m=3.18):
+    """Small multiples: the head paths of every run, one panel per case."""
+    cases: dict = {}
+    for r in rows:
+        if r.get("status") == "ok":
+            cases.setdefault(r["label"], []).append(r)
+    n = len(cases)
+    cols = min(5, n)
+    nrows = -(-n // cols)
+    fig, axes = plt.subplots(nrows, cols, figsize=(3 * cols, 2.6 * nrows), sharex=True, sharey=True, squeeze=False)
+    for ax, (label, rs) in zip(axes.flat, cases.items(), strict=False):
+        for r in rs:
+            path = np.asarray(r["path"])
+            ax.plot(path[:, 0], path[:, 1], lw=0.8)
+        ax.axvline(line_x_m, color="k", lw=0.5)
+        ax.set_title(label, fontsize=9)
+        ax.set_aspect("equal", adjustable="box")
+        ax.grid(True, alpha=0.3)
+    for ax in axes.flat[n:]:
+        ax.axis("off")
+    fig.supxlabel("x (m)")
+    fig.supylabel("y (m)")
+    fig.tight_layout()
+    return fig

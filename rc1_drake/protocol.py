@@ -57,15 +57,15 @@ def configure_context(built: RC1Diagram, context, scenario: Scenario, initial=No
     built.friction.set_wheel_toe(built.friction.GetMyMutableContextFromRoot(context),
                                  math.radians(scenario.effects.wheel_toe_deg))
     built.failure_switch.reset(context, scenario.servo.torque_limit_Nm)
-    for failure in scenario.failures:
-        if failure.time_s == 0.0:
-            built.failure_switch.fail(context, failure)
     if built.gait_bias is not None:
         bias = serpenoid_parameters(scenario.gait)[3]
         built.gait_bias.get_mutable_source_value(built.gait_bias.GetMyMutableContextFromRoot(context)).SetFromVector(bias)
     plant_context = built.plant.GetMyMutableContextFromRoot(context)
     x0 = initial_state(scenario, built.rc1.geometry) if initial is None else initial
     built.plant.SetPositionsAndVelocities(plant_context, x0)
+    for failure in scenario.failures:  # after the state: locking a joint zeroes its rate
+        if failure.time_s == 0.0:
+            built.failure_switch.fail(context, failure)
     for logger in (built.state_logger, built.torque_logger):
         logger.FindMutableLog(context).Clear()
 

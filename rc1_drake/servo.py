@@ -22,7 +22,7 @@ from pydrake.symbolic import min as symbolic_min
 from pydrake.systems.primitives import ConstantVectorSource, LinearSystem, Multiplexer, SymbolicVectorSystem
 
 from .config import NUM_JOINTS, Failure, Servo
-from .friction import FAILED
+from .friction import FAILED, FREE, LOCKED, WORKING
 
 
 def clamp_torque(u, limit):
@@ -31,10 +31,13 @@ def clamp_torque(u, limit):
 
 
 class FailureSwitch:
-    """Turns joints' servos off in a context: servo power -> 0, joint friction c_joint on (Fig. 4)."""
+    """Applies failures to a context (paper Fig. 4): a `free` joint's servo power drops to 0 and its
+    joint friction c_joint acts; a `locked` joint is also held by the plant at its current angle;
+    a `weak` joint's servo keeps tracking with its power cut to weak_torque_Nm."""
 
     def __init__(self, rc1, power_system, friction_system):
         self._effort = rc1.effort_limit
+        self._joints = rc1.joints
         self._power = power_system
         self._friction = friction_system
 
@@ -42,19 +45,34 @@ class FailureSwitch:
         """Every servo powered (to the SDF's effort limit, or `torque_limit`), no failed joint."""
         power = self._effort if torque_limit is None else np.full_like(self._effort, torque_limit)
         self._power_parameter(root_context).SetFromVector(power)
-        self._failed(root_context)[:] = 0.0
+        self._states(root_context)[:] = WORKING
+        plant_context = self._plant_context(root_context)
+        for joint in self._joints:
+            if joint.is_locked(plant_context):
+                joint.Unlock(plant_context)
 
     def fail(self, root_context, failure: Failure) -> None:
-        self._power_parameter(root_context).SetAtIndex(failure.joint - 1, 0.0)
-        self._failed(root_context)[failure.joint - 1] = 1.0
+        j = failure.joint - 1
+        if failure.mode == "weak":
+            self._power_parameter(root_context).SetAtIndex(j, min(failure.weak_torque_Nm, self._effort[j]))
+            return
+        self._power_parameter(root_context).SetAtIndex(j, 0.0)
+        if failure.mode == "locked":
+            self._joints[j].Lock(self._plant_context(root_context))
+            self._states(root_context)[j] = LOCKED
+        else:
+            self._states(root_context)[j] = FREE
 
     def servo_power(self, root_context) -> np.ndarray:
         return self._power_parameter(root_context).CopyToVector()
 
+    def _plant_context(self, root_context):
+        return self._joints[0].GetParentPlant().GetMyMutableContextFromRoot(root_context)
+
     def _power_parameter(self, root_context):
         return self._power.get_mutable_source_value(self._power.GetMyMutableContextFromRoot(root_context))
 
-    def _failed(self, root_context):
+    def _states(self, root_context):
         return self._friction.parameters(self._friction.GetMyMutableContextFromRoot(root_context))[FAILED]
 
 
