@@ -124,6 +124,23 @@ class Numerics:
 
 
 @dataclasses.dataclass
+class HeadingControl:
+    """Closed-loop bias (the paper's proposal in section 5): every joint's bias is
+    -clamp(kp e + ki int(e) dt, +-bias_limit), e = heading_ref - (mean module yaw), so the snake
+    turns back toward its reference heading; the integral also cancels the lateral offset that
+    a heading error built up. Zero gains: no controller in the Diagram."""
+
+    kp: float = 0.0  # rad of bias per rad of heading error
+    ki_per_s: float = 0.0
+    bias_limit_deg: float = 5.0
+    heading_ref_deg: float = 0.0
+
+    @property
+    def active(self) -> bool:
+        return self.kp != 0.0 or self.ki_per_s != 0.0
+
+
+@dataclasses.dataclass
 class Scenario:
     gait: Gait = dataclasses.field(default_factory=Gait)
     servo: Servo = dataclasses.field(default_factory=Servo)
@@ -131,6 +148,7 @@ class Scenario:
     effects: Effects = dataclasses.field(default_factory=Effects)
     failures: List[Failure] = dataclasses.field(default_factory=list)
     start: Start = dataclasses.field(default_factory=Start)
+    heading_control: HeadingControl = dataclasses.field(default_factory=HeadingControl)
     stop: Stop = dataclasses.field(default_factory=Stop)
     numerics: Numerics = dataclasses.field(default_factory=Numerics)
 

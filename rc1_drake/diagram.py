@@ -15,10 +15,12 @@ start pose) is set per run in the context by `configure_context`, so batch work 
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import numpy as np
 from pydrake.systems.framework import DiagramBuilder
-from pydrake.systems.primitives import LogVectorOutput, MatrixGain, TrajectorySource
+from pydrake.systems.primitives import (AffineSystem, LinearSystem, LogVectorOutput, MatrixGain, Saturation,
+                                        TrajectorySource)
 
 from .config import Scenario
 from .friction import FrictionForces
@@ -51,7 +53,35 @@ def build_key(scenario: Scenario, joint_reference=None) -> tuple:
     else:
         source = ("joint_reference", id(joint_reference))
     s, n = scenario.servo, scenario.numerics
-    return source + (s.kp_Nm_per_rad, s.ki_Nm_per_rad_s, s.kd_Nm_s_per_rad, n.time_step_s, n.log_period_s)
+    return source + (s.kp_Nm_per_rad, s.ki_Nm_per_rad_s, s.kd_Nm_s_per_rad, n.time_step_s, n.log_period_s,
+                     dataclasses.astuple(scenario.heading_control))
+
+
+def add_heading_control(builder, plant, scenario: Scenario):
+    """A discrete PI controller from the body's heading (mean module yaw) to a common bias; returns
+    its output port (see config.HeadingControl)."""
+    hc = scenario.heading_control
+    nq = plant.num_positions()
+    n_joints = nq - 3
+    # Mean module yaw = head yaw + (1/14) sum_k (q_1 + ... + q_{k-1}) = head yaw + sum_i (14 - i)/14 q_i.
+    heading = np.zeros((1, 2 * nq))
+    heading[0, 2] = 1.0
+    heading[0, 3:nq] = (n_joints + 1 - np.arange(1, n_joints + 1)) / (n_joints + 1)
+    dt = scenario.numerics.time_step_s
+    # Input psi; state z = sum (psi - psi_ref) dt; bias = -kp (psi_ref - psi) - ki (-z) = kp (psi - psi_ref) + ki z.
+    ref = math.radians(hc.heading_ref_deg)
+    sense = builder.AddSystem(AffineSystem(A=np.zeros((0, 0)), B=np.zeros((0, 2 * nq)), f0=np.zeros(0),
+                                           C=np.zeros((1, 0)), D=heading, y0=[-ref]))
+    sense.set_name("heading_error")
+    pi = builder.AddSystem(LinearSystem(A=[[1.0]], B=[[dt]], C=[[hc.ki_per_s]], D=[[hc.kp]], time_period=dt))
+    pi.set_name("heading_controller")
+    limit = math.radians(hc.bias_limit_deg)
+    clamp = builder.AddSystem(Saturation([-limit], [limit]))
+    clamp.set_name("feedback_bias_limit")
+    builder.Connect(plant.get_state_output_port(), sense.get_input_port())
+    builder.Connect(sense.get_output_port(), pi.get_input_port())
+    builder.Connect(pi.get_output_port(), clamp.get_input_port())
+    return clamp.get_output_port()
 
 
 def build_diagram(scenario: Scenario, *, joint_reference=None) -> RC1Diagram:
@@ -61,7 +91,8 @@ def build_diagram(scenario: Scenario, *, joint_reference=None) -> RC1Diagram:
     rc1 = add_rc1_plant(builder, time_step=scenario.numerics.time_step_s)
     plant = rc1.plant
     if joint_reference is None:
-        desired_state, bias = add_gait_source(builder, scenario.gait)
+        feedback = add_heading_control(builder, plant, scenario) if scenario.heading_control.active else None
+        desired_state, bias = add_gait_source(builder, scenario.gait, bias_input=feedback)
     else:
         source = builder.AddSystem(TrajectorySource(joint_reference, output_derivative_order=1))
         source.set_name("joint_reference")

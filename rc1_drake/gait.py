@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
-from pydrake.systems.primitives import Adder, ConstantVectorSource, Multiplexer, Sine
+from pydrake.systems.primitives import Adder, ConstantVectorSource, MatrixGain, Multiplexer, Sine
 
 from .config import NUM_JOINTS, Gait
 
@@ -34,19 +34,25 @@ def serpenoid(t, gait: Gait):
     return amp * np.sin(arg) + bias, amp * omega * np.cos(arg)
 
 
-def add_gait_source(builder, gait: Gait):
+def add_gait_source(builder, gait: Gait, *, bias_input=None):
     """Add the serpenoid source; returns (desired_state output port [theta; theta_dot], bias source).
 
     Drake's Sine computes a sin(omega t + p), so p = -phi_i. The bias B_i is a separate constant
-    source whose value lives in the context, so a run can change it without rebuilding.
+    source whose value lives in the context, so a run can change it without rebuilding. A
+    `bias_input` port (a scalar, e.g. a heading controller's output) adds to every joint's bias.
     """
     amp, omega, phase, bias = serpenoid_parameters(gait)
     sine = builder.AddSystem(Sine(amp, omega, -phase))
     sine.set_name("serpenoid")
     bias_source = builder.AddSystem(ConstantVectorSource(bias))
     bias_source.set_name("gait_bias")
-    adder = builder.AddSystem(Adder(2, NUM_JOINTS))
+    adder = builder.AddSystem(Adder(2 if bias_input is None else 3, NUM_JOINTS))
     adder.set_name("gait_plus_bias")
+    if bias_input is not None:
+        spread = builder.AddSystem(MatrixGain(np.ones((NUM_JOINTS, 1))))
+        spread.set_name("feedback_bias_to_joints")
+        builder.Connect(bias_input, spread.get_input_port())
+        builder.Connect(spread.get_output_port(), adder.get_input_port(2))
     mux = builder.AddSystem(Multiplexer([NUM_JOINTS, NUM_JOINTS]))
     mux.set_name("gait_desired_state")
     builder.Connect(sine.get_output_port(0), adder.get_input_port(0))
