@@ -60,6 +60,7 @@ def make_parser() -> argparse.ArgumentParser:
     run.add_argument("--phase-step-deg", type=_float, metavar="P", help="phase step between joints, degrees")
     run.add_argument("--friction", type=_friction_override, action="append", default=[], metavar="NAME=VALUE",
                      help=f"set a friction coefficient ({', '.join(FRICTION_NAMES)}); repeatable")
+    run.add_argument("--friction-file", type=Path, metavar="PATH", help="friction YAML, e.g. from rc1 identify --out")
     run.add_argument("--time-limit-s", type=_float, metavar="T", help="stop after T seconds at the latest")
     run.add_argument("--json", type=Path, metavar="PATH", help="write the summary as JSON")
     run.add_argument("--plot", type=Path, metavar="PATH", help="write the head path figure (PNG, PDF, SVG)")
@@ -81,6 +82,7 @@ def make_parser() -> argparse.ArgumentParser:
     cmp.add_argument("campaign", type=Path, help="campaign folder (data/README.md)")
     cmp.add_argument("--friction", type=_friction_override, action="append", default=[], metavar="NAME=VALUE",
                      help="friction coefficient for the model (repeatable)")
+    cmp.add_argument("--friction-file", type=Path, metavar="PATH", help="friction YAML, e.g. from rc1 identify --out")
     cmp.add_argument("--json", type=Path, metavar="PATH", help="write every per-trial and per-case number")
     cmp.add_argument("--plots", type=Path, metavar="DIR", help="write figures in the paper's styles")
     cmp.add_argument("--workers", type=_positive_int, metavar="N", help="processes (default: every core)")
@@ -103,6 +105,19 @@ def make_parser() -> argparse.ArgumentParser:
     swp.add_argument("--seed", type=int, default=0)
     swp.add_argument("--workers", type=_positive_int, metavar="N", help="local processes (default: every core)")
     swp.add_argument("--scheduler", metavar="ADDRESS", help="a Dask scheduler, e.g. tcp://10.0.0.5:8786")
+
+    idn = sub.add_parser("identify", help="identify the five friction coefficients from a campaign")
+    idn.add_argument("campaign", type=Path)
+    idn.add_argument("--method", choices=("avs",), default="avs", help="avs: the paper's Alternating Variable Search")
+    idn.add_argument("--trials", metavar="IDS", help="comma-separated trial ids to fit (default: all)")
+    idn.add_argument("--iterations", type=_positive_int, default=10, metavar="N", help="AVS iterations (default 10)")
+    idn.add_argument("--freeze", action="append", default=[], choices=FRICTION_NAMES, metavar="NAME",
+                     help="keep a coefficient at its start value (repeatable)")
+    idn.add_argument("--json", type=Path, metavar="PATH")
+    idn.add_argument("--plots", type=Path, metavar="DIR")
+    idn.add_argument("--out", type=Path, metavar="FRICTION.yaml", help="write the identified coefficients")
+    idn.add_argument("--workers", type=_positive_int, metavar="N")
+    idn.add_argument("--scheduler", metavar="ADDRESS")
 
     cmpn = sub.add_parser("compensate", help="bias, heading feedback and reverse driving for failed joints")
     cmpn.add_argument("--joints", type=_joint_list, default=list(range(1, 14)), metavar="LIST",
@@ -156,7 +171,12 @@ def scenario_from_args(args):
         gait = dataclasses.replace(gait, bias_deg=args.bias_deg)
     if args.phase_step_deg is not None:
         gait = dataclasses.replace(gait, phase_step_deg=args.phase_step_deg)
-    friction = dataclasses.replace(scenario.friction, **dict(args.friction))
+    base = scenario.friction
+    if args.friction_file:
+        from .identify import load_friction_file
+
+        base = load_friction_file(args.friction_file)
+    friction = dataclasses.replace(base, **dict(args.friction))
     stop = scenario.stop
     if args.time_limit_s is not None:
         stop = dataclasses.replace(stop, time_limit_s=args.time_limit_s)
@@ -209,10 +229,15 @@ def cmd_synthesize(args) -> int:
     return 0
 
 
-def validate_friction(overrides: dict) -> Friction:
+def validate_friction(overrides: dict, friction_file=None) -> Friction:
     from .config import Scenario
 
-    friction = dataclasses.replace(Friction(), **overrides)
+    base = Friction()
+    if friction_file is not None:
+        from .identify import load_friction_file
+
+        base = load_friction_file(friction_file)
+    friction = dataclasses.replace(base, **overrides)
     validate(Scenario(friction=friction), where="command line")
     return friction
 
@@ -222,7 +247,7 @@ def cmd_compare(args) -> int:
     from .measurements import load_campaign
 
     campaign = load_campaign(args.campaign)
-    friction = validate_friction(dict(args.friction))
+    friction = validate_friction(dict(args.friction), args.friction_file)
 
     def progress(done, total, trial_id):
         print(f"\r  replayed {done}/{total} trials ({trial_id})", end="", file=sys.stderr, flush=True)
@@ -309,6 +334,35 @@ def cmd_sweep(args) -> int:
     return 0
 
 
+def cmd_identify(args) -> int:
+    import matplotlib.pyplot as plt
+
+    from .identify import DEFAULT_PARAMETERS, avs_figure, friction_to_yaml, identify_avs
+    from .measurements import load_campaign
+
+    campaign = load_campaign(args.campaign)
+    trials = None if not args.trials else [t.strip() for t in args.trials.split(",") if t.strip()]
+    parameters = [dataclasses.replace(p, frozen=p.name in args.freeze) for p in DEFAULT_PARAMETERS]
+
+    def progress(done, total, name, error):
+        print(f"  iteration {done}/{total}: {name}, mean Eq. 6 error {error:.2f}%", file=sys.stderr, flush=True)
+
+    result = identify_avs(campaign, trials=trials, iterations=args.iterations, workers=args.workers,
+                          scheduler=args.scheduler, parameters=parameters, progress=progress)
+    print("Friction identification by AVS (paper Table 1; * = the coefficient each iteration varied):")
+    print(result.table())
+    print(f"{result.simulations} simulations")
+    if args.json:
+        _write_atomically(args.json, lambda p: p.write_text(json.dumps(result.to_json(), indent=2) + "\n"))
+    if args.out:
+        _write_atomically(args.out, lambda p: p.write_text(friction_to_yaml(result.friction)))
+    if args.plots:
+        fig = avs_figure(result)
+        _write_atomically(args.plots / "avs_iterations.png", lambda p: fig.savefig(p, format="png", dpi=110))
+        plt.close(fig)
+    return 0
+
+
 def cmd_compensate(args) -> int:
     from .compensation import compensation_study
     from .config import Scenario
@@ -334,7 +388,7 @@ def main(argv=None) -> int:
     args = make_parser().parse_args(argv)
     try:
         return {"run": cmd_run, "synthesize": cmd_synthesize, "compare": cmd_compare, "sweep": cmd_sweep,
-                "compensate": cmd_compensate}[args.command](args)
+                "identify": cmd_identify, "compensate": cmd_compensate}[args.command](args)
     except Rc1Error as e:
         print(f"rc1 {args.command}: error: {e}", file=sys.stderr)
         return 2

@@ -1,0 +1,67 @@
+"""Friction identification: the paper's AVS gives a Table 1 shaped history whose error never rises;
+its result round-trips through a friction file that run and compare read."""
+
+import dataclasses
+
+import pytest
+
+from rc1_drake.cli import main
+from rc1_drake.config import FRICTION_NAMES, Friction, Rc1Error, Stop
+from rc1_drake.identify import (PAPER_MANUAL, Eq6Objective, avs, friction_to_yaml, load_friction_file)
+from rc1_drake.measurements import load_campaign
+from rc1_drake.synthesize import Case, synthesize_campaign
+
+
+@pytest.fixture(scope="module")
+def campaign(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("ident") / "campaign"
+    synthesize_campaign(folder, design=[Case([7], 1)], seed=5,
+                        stop=Stop(line_x_m=None, revolutions=None, time_limit_s=3.0))
+    return load_campaign(folder)
+
+
+def test_avs_history_never_rises_and_has_table_1_shape(campaign):
+    objective = Eq6Objective(campaign.trials)
+    result = avs(objective, start=PAPER_MANUAL, iterations=3, factors=(0.5, 1.5))
+    assert [it.parameter for it in result.iterations] == ["c_joint", "mu_lat", "mu_long"]
+    errors = [result.start_error] + [it.error for it in result.iterations]
+    assert all(b <= a for a, b in zip(errors, errors[1:], strict=False))
+    for it in result.iterations:
+        assert it.error == min(it.errors) and it.best in it.candidates
+    table = result.table().splitlines()
+    assert table[0].split()[:2] == ["Param.", "Initial"] and len(table) == 2 + len(FRICTION_NAMES)
+    assert result.simulations == objective.simulations == 1 + 3 * 2  # cached: the incumbent is not re-run
+
+
+def test_frozen_coefficients_stay(campaign):
+    from rc1_drake.identify import DEFAULT_PARAMETERS
+
+    params = [dataclasses.replace(p, frozen=p.name != "mu_long") for p in DEFAULT_PARAMETERS]
+    result = avs(Eq6Objective(campaign.trials), iterations=2, parameters=params, factors=(0.5,))
+    assert all(it.parameter == "mu_long" for it in result.iterations)
+    assert all(getattr(result.friction, n) == getattr(PAPER_MANUAL, n) for n in FRICTION_NAMES if n != "mu_long")
+
+
+def test_friction_file_round_trip_and_errors(tmp_path):
+    friction = Friction(c_joint=0.05, mu_lat=1.4, mu_long=0.11, c_lat=3.0, c_long=0.2)
+    path = tmp_path / "f.yaml"
+    path.write_text(friction_to_yaml(friction))
+    assert load_friction_file(path) == friction
+    path.write_text("mu_lat: -1\n")
+    with pytest.raises(Rc1Error, match="friction.mu_lat: must be >= 0"):
+        load_friction_file(path)
+    path.write_text("mu_side: 1\n")
+    with pytest.raises(Rc1Error, match="mu_side"):
+        load_friction_file(path)
+    with pytest.raises(Rc1Error, match="no such friction file"):
+        load_friction_file(tmp_path / "missing.yaml")
+
+
+def test_identify_command_writes_the_friction_file_that_run_reads(campaign, tmp_path, capsys):
+    out = tmp_path / "friction.yaml"
+    assert main(["identify", str(campaign.path), "--iterations", "1", "--out", str(out), "--json",
+                 str(tmp_path / "avs.json"), "--plots", str(tmp_path / "plots"), "--workers", "1"]) == 0
+    assert "Param." in capsys.readouterr().out
+    identified = load_friction_file(out)
+    assert main(["run", "--friction-file", str(out), "--time-limit-s", "0.5", "--json", str(tmp_path / "r.json")]) == 0
+    assert identified.mu_lat > 0 and (tmp_path / "plots" / "avs_iterations.png").stat().st_size > 5_000
