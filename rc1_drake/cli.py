@@ -7,6 +7,7 @@ import dataclasses
 import json
 import os
 import sys
+import time
 from pathlib import Path
 
 from .config import (DEFAULT_SCENARIOS, EFFECT_NAMES, FAILURE_MODES, FRICTION_NAMES, Effects, Failure, Friction,
@@ -347,13 +348,22 @@ def cmd_identify(args) -> int:
     def progress(done, total, name, error):
         print(f"  iteration {done}/{total}: {name}, mean Eq. 6 error {error:.2f}%", file=sys.stderr, flush=True)
 
-    result = identify_avs(campaign, trials=trials, iterations=args.iterations, workers=args.workers,
-                          scheduler=args.scheduler, parameters=parameters, progress=progress)
+    start = time.perf_counter()
+    result, spread = identify_avs(campaign, trials=trials, iterations=args.iterations, workers=args.workers,
+                                  scheduler=args.scheduler, parameters=parameters, progress=progress)
+    wall = time.perf_counter() - start
     print("Friction identification by AVS (paper Table 1; * = the coefficient each iteration varied):")
     print(result.table())
-    print(f"{result.simulations} simulations")
+    print()
+    print(f"Uncertainty at the result (residual Jacobian; standardized residual RMS {spread.residual_rms:.2f}):")
+    print(spread.table())
+    for warning in spread.warnings():
+        print(f"warning: {warning}")
+    print(f"{result.simulations + spread.simulations} simulations, {wall:.0f} s")
     if args.json:
-        _write_atomically(args.json, lambda p: p.write_text(json.dumps(result.to_json(), indent=2) + "\n"))
+        record = {**result.to_json(), "uncertainty": dataclasses.asdict(spread), "warnings": spread.warnings(),
+                  "simulations": result.simulations + spread.simulations, "wall_time_s": wall}
+        _write_atomically(args.json, lambda p: p.write_text(json.dumps(record, indent=2, default=float) + "\n"))
     if args.out:
         _write_atomically(args.out, lambda p: p.write_text(friction_to_yaml(result.friction)))
     if args.plots:

@@ -163,13 +163,17 @@ def avs(objective, *, start: Friction = PAPER_MANUAL, iterations: int = 10,
 
 
 def identify_avs(campaign, *, trials=None, iterations=10, workers=None, scheduler=None, start=PAPER_MANUAL,
-                 parameters=None, progress=None) -> AvsResult:
+                 parameters=None, progress=None):
+    """AVS on the chosen trials, then the uncertainty of its result: (AvsResult, Uncertainty)."""
     chosen = [t for t in campaign.trials if trials is None or t.trial_id in trials]
-    if not chosen:
-        raise Rc1Error(f"{campaign.path}: none of the trials {sorted(trials or [])} is in the campaign")
+    missing = sorted(set(trials or []) - {t.trial_id for t in campaign.trials})
+    if missing:
+        raise Rc1Error(f"{campaign.path}: no trial '{missing[0]}' in the campaign")
     with make_executor(workers=workers or min(os.cpu_count() or 1, len(chosen)), scheduler=scheduler) as executor:
         objective = Eq6Objective(chosen, executor=executor)
-        return avs(objective, start=start, iterations=iterations, parameters=parameters, progress=progress)
+        result = avs(objective, start=start, iterations=iterations, parameters=parameters, progress=progress)
+        spread = uncertainty(CampaignResiduals(chosen, executor=executor), result.friction, parameters=parameters)
+    return result, spread
 
 
 def friction_to_yaml(friction: Friction) -> str:
@@ -213,3 +217,115 @@ def avs_figure(result: AvsResult):
         ax.axis("off")
     fig.tight_layout()
     return fig
+
+
+# Residual weights: roughly the measurement noise of each channel (data/README.md), so the residual
+# vector is standardized and its Jacobian gives a Fisher information.
+RESIDUAL_SIGMAS = {"final_m": 0.01, "yaw_rate_rad_s": 0.05, "camera_m": 0.01}
+RESIDUAL_PERIOD_S = 0.1
+
+
+def trial_residual(trial, run) -> np.ndarray:
+    """Standardized residuals of one replay: the final head position, the head yaw rate and, where
+    the camera saw the head, its x and y, sampled every RESIDUAL_PERIOD_S."""
+    t = trial.t - trial.t[0]
+    step = max(1, int(round(RESIDUAL_PERIOD_S / (t[1] - t[0]))))
+    keep = np.zeros(len(t), dtype=bool)
+    keep[::step] = True
+    keep &= t <= run.t[-1] + 1e-9
+    parts = [(run.head_xy[-1] - trial.final_head_xy) / RESIDUAL_SIGMAS["final_m"],
+             (np.interp(t[keep], run.t, run.head_yaw_rate) - trial.head_yaw_rate[keep]) / RESIDUAL_SIGMAS["yaw_rate_rad_s"]]
+    if trial.camera is not None:
+        seen = keep & ~np.isnan(trial.camera[:, 0])
+        for i in (0, 1):
+            parts.append((np.interp(t[seen], run.t, run.head_xy[:, i]) - trial.camera[seen, i]) / RESIDUAL_SIGMAS["camera_m"])
+    return np.concatenate(parts)
+
+
+def _replay_residual(trial, friction: Friction, effects=None) -> np.ndarray:
+    from .replay import Replayer
+
+    key = str(trial.source or trial.trial_id)
+    if key not in _REPLAYERS:
+        _REPLAYERS[key] = Replayer(trial)
+    return trial_residual(trial, _REPLAYERS[key].run(friction, effects))
+
+
+class CampaignResiduals:
+    """The stacked standardized residuals of the trials for a friction set; counts simulations."""
+
+    def __init__(self, trials, *, executor=None, effects=None):
+        self.trials, self.executor, self.effects = list(trials), executor, effects
+        self.simulations = 0
+
+    def __call__(self, friction: Friction) -> np.ndarray:
+        if self.executor is None:
+            parts = [_replay_residual(t, friction, self.effects) for t in self.trials]
+        else:
+            parts = [f.result() for f in [self.executor.submit(_replay_residual, t, friction, self.effects)
+                                          for t in self.trials]]
+        self.simulations += len(self.trials)
+        return np.concatenate(parts)
+
+
+@dataclasses.dataclass
+class Uncertainty:
+    names: List[str]
+    values: List[float]
+    standard_errors: List[float]  # inf where the data do not constrain the coefficient
+    correlation: List[List[float]]
+    sensitivities: List[float]  # |d residual / d log(coefficient)|: how much the data see a 1% change, x100
+    identifiable: List[bool]
+    residual_rms: float  # of the standardized residuals
+    simulations: int
+
+    def warnings(self) -> List[str]:
+        return [f"{n}: not identifiable from these trials (relative standard error "
+                f"{'inf' if not math.isfinite(se) else f'{100 * se / max(abs(v), 1e-12):.0f}%'}); its value is the "
+                f"start value, not a fit" for n, v, se, ok in zip(self.names, self.values, self.standard_errors,
+                                                                  self.identifiable, strict=True) if not ok]
+
+    def table(self) -> str:
+        lines = [f"{'coefficient':<12}{'value':>10}{'std. error':>12}{'95% interval':>24}{'sensitivity':>13}  identifiable"]
+        for n, v, se, s, ok in zip(self.names, self.values, self.standard_errors, self.sensitivities,
+                                   self.identifiable, strict=True):
+            ci = "-" if not math.isfinite(se) else f"[{v - 1.96 * se:.4g}, {v + 1.96 * se:.4g}]"
+            lines.append(f"{n:<12}{v:>10.4g}{(f'{se:.3g}' if math.isfinite(se) else 'inf'):>12}{ci:>24}{s:>13.3g}  "
+                         f"{'yes' if ok else 'NO'}")
+        return "\n".join(lines)
+
+
+def uncertainty(residuals, friction: Friction, *, parameters=None, relative_step=0.05,
+                max_relative_error=0.3) -> Uncertainty:
+    """Standard errors and correlations of the free coefficients from the residual Jacobian at
+    `friction` (forward differences in log-coefficient), cov = s^2 (J^T J)^-1 with s^2 the residual
+    variance; a coefficient is identifiable when its relative standard error is below
+    `max_relative_error`. Costs one residual evaluation per free coefficient, plus one."""
+    free = [p for p in (parameters or DEFAULT_PARAMETERS) if not p.frozen]
+    start_sims = getattr(residuals, "simulations", 0)
+    r0 = residuals(friction)
+    columns = []
+    for p in free:
+        value = getattr(friction, p.name)
+        base = value if value > 0 else 1e-3 * (p.upper - p.lower)
+        h = relative_step * base
+        step = h if base + h <= p.upper else -h
+        shifted = dataclasses.replace(friction, **{p.name: base + step})
+        columns.append((residuals(shifted) - r0) / step * base)  # d r / d log(theta)
+    jac = np.column_stack(columns)
+    m, n = jac.shape
+    s2 = float(r0 @ r0) / max(m - n, 1)
+    u, sv, vt = np.linalg.svd(jac, full_matrices=False)
+    keep = sv > 1e-9 * max(sv.max(), 1e-300)
+    inv = (vt[keep].T / sv[keep] ** 2) @ vt[keep]
+    cov_log = s2 * inv
+    values = [getattr(friction, p.name) for p in free]
+    null = np.abs(vt[~keep]).max(axis=0) > 1e-6 if (~keep).any() else np.zeros(n, dtype=bool)
+    se = [math.inf if null[i] else float(abs(values[i]) * math.sqrt(max(cov_log[i, i], 0.0))) for i in range(n)]
+    d = np.sqrt(np.clip(np.diag(cov_log), 1e-300, None))
+    corr = np.where(np.outer(d, d) > 0, cov_log / np.outer(d, d), 0.0)
+    identifiable = [math.isfinite(s) and s < max_relative_error * abs(v) for s, v in zip(se, values, strict=True)]
+    return Uncertainty(names=[p.name for p in free], values=values, standard_errors=se,
+                       correlation=np.round(corr, 4).tolist(), sensitivities=[float(np.linalg.norm(c)) / 100 for c in columns],
+                       identifiable=identifiable, residual_rms=float(np.sqrt(np.mean(r0**2))),
+                       simulations=getattr(residuals, "simulations", 0) - start_sims)

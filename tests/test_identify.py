@@ -2,6 +2,8 @@
 its result round-trips through a friction file that run and compare read."""
 
 import dataclasses
+import json
+import math
 
 import pytest
 
@@ -59,9 +61,32 @@ def test_friction_file_round_trip_and_errors(tmp_path):
 
 def test_identify_command_writes_the_friction_file_that_run_reads(campaign, tmp_path, capsys):
     out = tmp_path / "friction.yaml"
+    frozen = [arg for name in ("c_joint", "mu_long", "c_lat", "c_long") for arg in ("--freeze", name)]
     assert main(["identify", str(campaign.path), "--iterations", "1", "--out", str(out), "--json",
-                 str(tmp_path / "avs.json"), "--plots", str(tmp_path / "plots"), "--workers", "1"]) == 0
-    assert "Param." in capsys.readouterr().out
+                 str(tmp_path / "avs.json"), "--plots", str(tmp_path / "plots"), "--workers", "1", *frozen]) == 0
+    printed = capsys.readouterr().out
+    assert "Param." in printed and "std. error" in printed
+    record = json.loads((tmp_path / "avs.json").read_text())
+    assert record["iterations"][0]["parameter"] == "mu_lat" and record["uncertainty"]["names"] == ["mu_lat"]
+    assert record["simulations"] == 1 + 4 + 2
     identified = load_friction_file(out)
     assert main(["run", "--friction-file", str(out), "--time-limit-s", "0.5", "--json", str(tmp_path / "r.json")]) == 0
     assert identified.mu_lat > 0 and (tmp_path / "plots" / "avs_iterations.png").stat().st_size > 5_000
+
+
+def test_uncertainty_flags_what_the_trials_cannot_identify(tmp_path):
+    from rc1_drake.identify import CampaignResiduals, uncertainty
+
+    folder = tmp_path / "c"
+    synthesize_campaign(folder, design=[Case([], 1), Case([7], 1)], seed=8,
+                        stop=Stop(line_x_m=None, revolutions=None, time_limit_s=3.0))
+    trials = {t.case: t for t in load_campaign(folder).trials}
+    nominal = uncertainty(CampaignResiduals([trials["none"]]), Friction())
+    # Without a failed joint the joint friction c_joint does not enter the model at all.
+    assert nominal.names[0] == "c_joint" and nominal.sensitivities[0] == 0.0
+    assert nominal.standard_errors[0] == float("inf") and not nominal.identifiable[0]
+    assert any(w.startswith("c_joint: not identifiable") for w in nominal.warnings())
+    assert all(math.isfinite(se) for se in nominal.standard_errors[1:])
+    assert nominal.simulations == 1 + 5
+    failed = uncertainty(CampaignResiduals([trials["J7"]]), Friction())
+    assert failed.sensitivities[0] > 0.0 and math.isfinite(failed.standard_errors[0])
