@@ -329,3 +329,4 @@ def uncertainty(residuals, friction: Friction, *, parameters=None, relative_step
                        correlation=np.round(corr, 4).tolist(), sensitivities=[float(np.linalg.norm(c)) / 100 for c in columns],
                        identifiable=identifiable, residual_rms=float(np.sqrt(np.mean(r0**2))),
                        simulations=getattr(residuals, "simulations", 0) - start_sims)
+
