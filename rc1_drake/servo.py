@@ -25,11 +25,6 @@ from .config import NUM_JOINTS, Failure, Servo
 from .friction import FAILED, FREE, LOCKED, WORKING
 
 
-def clamp_torque(u, limit):
-    """The servo_power system's law, for tests and the reference model: clamp(u, -limit, limit)."""
-    return np.minimum(np.maximum(u, -limit), limit)
-
-
 class FailureSwitch:
     """Applies failures to a context (paper Fig. 4): a `free` joint's servo power drops to 0 and its
     joint friction c_joint acts; a `locked` joint is also held by the plant at its current angle;
@@ -62,9 +57,6 @@ class FailureSwitch:
             self._states(root_context)[j] = LOCKED
         else:
             self._states(root_context)[j] = FREE
-
-    def servo_power(self, root_context) -> np.ndarray:
-        return self._power_parameter(root_context).CopyToVector()
 
     def _plant_context(self, root_context):
         return self._joints[0].GetParentPlant().GetMyMutableContextFromRoot(root_context)
