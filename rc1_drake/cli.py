@@ -109,9 +109,14 @@ def make_parser() -> argparse.ArgumentParser:
 
     idn = sub.add_parser("identify", help="identify the five friction coefficients from a campaign")
     idn.add_argument("campaign", type=Path)
-    idn.add_argument("--method", choices=("avs",), default="avs", help="avs: the paper's Alternating Variable Search")
+    idn.add_argument("--method", choices=("avs", "program"), default="avs",
+                     help="avs: the paper's Alternating Variable Search; program: least squares of the standardized "
+                          "residuals, Levenberg-Marquardt steps as MathematicalPrograms solved by SNOPT")
     idn.add_argument("--trials", metavar="IDS", help="comma-separated trial ids to fit (default: all)")
-    idn.add_argument("--iterations", type=_positive_int, default=10, metavar="N", help="AVS iterations (default 10)")
+    idn.add_argument("--iterations", type=_positive_int, default=10, metavar="N",
+                     help="AVS iterations, or the program fit's at most (default 10)")
+    idn.add_argument("--start", type=Path, metavar="FRICTION.yaml",
+                     help="starting coefficients (default: the paper's manual values); frozen ones stay at them")
     idn.add_argument("--freeze", action="append", default=[], choices=FRICTION_NAMES, metavar="NAME",
                      help="keep a coefficient at its start value (repeatable)")
     idn.add_argument("--json", type=Path, metavar="PATH")
@@ -338,22 +343,31 @@ def cmd_sweep(args) -> int:
 def cmd_identify(args) -> int:
     import matplotlib.pyplot as plt
 
-    from .identify import DEFAULT_PARAMETERS, avs_figure, friction_to_yaml, identify_avs
+    from .identify import (DEFAULT_PARAMETERS, PAPER_MANUAL, avs_figure, friction_to_yaml, identify_avs,
+                           identify_program, load_friction_file)
     from .measurements import load_campaign
 
     campaign = load_campaign(args.campaign)
     trials = None if not args.trials else [t.strip() for t in args.trials.split(",") if t.strip()]
     parameters = [dataclasses.replace(p, frozen=p.name in args.freeze) for p in DEFAULT_PARAMETERS]
+    start_friction = load_friction_file(args.start) if args.start else PAPER_MANUAL
 
     def progress(done, total, name, error):
         print(f"  iteration {done}/{total}: {name}, mean Eq. 6 error {error:.2f}%", file=sys.stderr, flush=True)
 
     start = time.perf_counter()
-    result, spread = identify_avs(campaign, trials=trials, iterations=args.iterations, workers=args.workers,
-                                  scheduler=args.scheduler, parameters=parameters, progress=progress)
+    if args.method == "avs":
+        result, spread = identify_avs(campaign, trials=trials, iterations=args.iterations, workers=args.workers,
+                                      scheduler=args.scheduler, parameters=parameters, progress=progress,
+                                      start=start_friction)
+        print("Friction identification by AVS (paper Table 1; * = the coefficient each iteration varied):")
+        print(result.table())
+    else:
+        result, spread = identify_program(campaign, trials=trials, workers=args.workers, scheduler=args.scheduler,
+                                          parameters=parameters, max_iterations=args.iterations, start=start_friction)
+        print(f"Friction identification by least squares ({result.iterations} iterations, cost "
+              f"{result.cost_start:.1f} -> {result.cost:.1f}):")
     wall = time.perf_counter() - start
-    print("Friction identification by AVS (paper Table 1; * = the coefficient each iteration varied):")
-    print(result.table())
     print()
     print(f"Uncertainty at the result (residual Jacobian; standardized residual RMS {spread.residual_rms:.2f}):")
     print(spread.table())
@@ -366,7 +380,7 @@ def cmd_identify(args) -> int:
         _write_atomically(args.json, lambda p: p.write_text(json.dumps(record, indent=2, default=float) + "\n"))
     if args.out:
         _write_atomically(args.out, lambda p: p.write_text(friction_to_yaml(result.friction)))
-    if args.plots:
+    if args.plots and args.method == "avs":
         fig = avs_figure(result)
         _write_atomically(args.plots / "avs_iterations.png", lambda p: fig.savefig(p, format="png", dpi=110))
         plt.close(fig)

@@ -330,3 +330,93 @@ def uncertainty(residuals, friction: Friction, *, parameters=None, relative_step
                        identifiable=identifiable, residual_rms=float(np.sqrt(np.mean(r0**2))),
                        simulations=getattr(residuals, "simulations", 0) - start_sims)
 
+
+
+@dataclasses.dataclass
+class ProgramResult:
+    start: Friction
+    friction: Friction
+    cost_start: float  # 0.5 |r|^2 of the standardized residuals
+    cost: float
+    iterations: int
+    simulations: int
+    jacobian: np.ndarray = dataclasses.field(repr=False, default=None)  # d r / d log(theta) at the result
+
+    def to_json(self) -> dict:
+        return {"method": "program", "solver": "snopt", "start": dataclasses.asdict(self.start),
+                "friction": dataclasses.asdict(self.friction), "cost_start": self.cost_start, "cost": self.cost,
+                "iterations": self.iterations, "simulations": self.simulations}
+
+
+def _bounded_step(jac, r, damping, lower, upper):
+    """The Levenberg-Marquardt step as a Drake MathematicalProgram solved by SNOPT:
+    min |r + J d|^2 + damping |d|^2 subject to lower <= d <= upper."""
+    from pydrake.solvers import MathematicalProgram, SnoptSolver
+
+    n = jac.shape[1]
+    prog = MathematicalProgram()
+    d = prog.NewContinuousVariables(n, "step")
+    prog.Add2NormSquaredCost(np.vstack([jac, math.sqrt(damping) * np.eye(n)]), np.concatenate([-r, np.zeros(n)]), d)
+    prog.AddBoundingBoxConstraint(lower, upper, d)
+    result = SnoptSolver().Solve(prog, np.zeros(n))
+    if not result.is_success():
+        raise Rc1Error(f"identify: SNOPT failed on a step ({result.get_solution_result()})")
+    return result.GetSolution(d)
+
+
+def fit_program(residuals, *, start: Friction, parameters=None, log_step: float = 0.02, max_iterations: int = 10,
+                tolerance: float = 1e-2) -> ProgramResult:
+    """Least squares of the standardized residuals (final position, yaw rate, camera path) over the log
+    of each free coefficient, within its bounds: Levenberg-Marquardt iterations whose bounded steps are
+    Drake MathematicalPrograms solved by SNOPT. The simulation is not differentiable, so the Jacobian
+    comes from forward differences (one residual evaluation per free coefficient per iteration)."""
+    free = [p for p in (parameters or DEFAULT_PARAMETERS) if not p.frozen]
+    base = np.array([max(getattr(start, p.name), 1e-3 * (p.upper - p.lower)) for p in free])
+    lower = np.array([math.log(max(p.lower, 1e-6) / b) for p, b in zip(free, base, strict=True)])
+    upper = np.array([math.log(p.upper / b) for p, b in zip(free, base, strict=True)])
+    start_sims = getattr(residuals, "simulations", 0)
+
+    def friction_at(u):
+        return dataclasses.replace(start, **{p.name: float(b * math.exp(x)) for p, b, x in zip(free, base, u, strict=True)})
+
+    u = np.zeros(len(free))
+    r = residuals(friction_at(u))
+    cost_start = cost = 0.5 * float(r @ r)
+    damping, iterations = 1.0, 0
+    jac = None
+    for k in range(1, max_iterations + 1):
+        iterations = k
+        jac = np.column_stack([(residuals(friction_at(u + log_step * e)) - r) / log_step for e in np.eye(len(u))])
+        while True:
+            step = _bounded_step(jac, r, damping, lower - u, upper - u)
+            r_new = residuals(friction_at(u + step))
+            cost_new = 0.5 * float(r_new @ r_new)
+            if cost_new < cost:
+                damping = max(damping / 3, 1e-6)
+                break
+            damping *= 4
+            if damping > 1e6:
+                step = None
+                break
+        if step is None:
+            break
+        u, r, improvement, cost = u + step, r_new, (cost - cost_new) / cost, cost_new
+        if improvement < tolerance or np.abs(step).max() < 1e-3:
+            break
+    return ProgramResult(start=start, friction=friction_at(u), cost_start=cost_start, cost=cost,
+                         iterations=iterations, simulations=getattr(residuals, "simulations", 0) - start_sims,
+                         jacobian=jac)
+
+
+def identify_program(campaign, *, trials=None, workers=None, scheduler=None, start=PAPER_MANUAL, parameters=None,
+                     max_iterations=10):
+    """The program fit on the chosen trials, then the uncertainty of its result."""
+    chosen = [t for t in campaign.trials if trials is None or t.trial_id in trials]
+    missing = sorted(set(trials or []) - {t.trial_id for t in campaign.trials})
+    if missing:
+        raise Rc1Error(f"{campaign.path}: no trial '{missing[0]}' in the campaign")
+    with make_executor(workers=workers or min(os.cpu_count() or 1, len(chosen)), scheduler=scheduler) as executor:
+        residuals = CampaignResiduals(chosen, executor=executor)
+        result = fit_program(residuals, start=start, parameters=parameters, max_iterations=max_iterations)
+        spread = uncertainty(residuals, result.friction, parameters=parameters)
+    return result, spread
