@@ -162,13 +162,18 @@ def avs(objective, *, start: Friction = PAPER_MANUAL, iterations: int = 10,
                      simulations=getattr(objective, "simulations", 0))
 
 
+def choose_trials(campaign, trial_ids=None) -> list:
+    """The campaign's trials with these ids (all when None); Rc1Error for an id it does not have."""
+    missing = sorted(set(trial_ids or []) - {t.trial_id for t in campaign.trials})
+    if missing:
+        raise Rc1Error(f"{campaign.path}: no trial '{missing[0]}' in the campaign")
+    return [t for t in campaign.trials if trial_ids is None or t.trial_id in trial_ids]
+
+
 def identify_avs(campaign, *, trials=None, iterations=10, workers=None, scheduler=None, start=PAPER_MANUAL,
                  parameters=None, progress=None):
     """AVS on the chosen trials, then the uncertainty of its result: (AvsResult, Uncertainty)."""
-    chosen = [t for t in campaign.trials if trials is None or t.trial_id in trials]
-    missing = sorted(set(trials or []) - {t.trial_id for t in campaign.trials})
-    if missing:
-        raise Rc1Error(f"{campaign.path}: no trial '{missing[0]}' in the campaign")
+    chosen = choose_trials(campaign, trials)
     with make_executor(workers=workers or min(os.cpu_count() or 1, len(chosen)), scheduler=scheduler) as executor:
         objective = Eq6Objective(chosen, executor=executor)
         result = avs(objective, start=start, iterations=iterations, parameters=parameters, progress=progress)
@@ -411,10 +416,7 @@ def fit_program(residuals, *, start: Friction, parameters=None, log_step: float 
 def identify_program(campaign, *, trials=None, workers=None, scheduler=None, start=PAPER_MANUAL, parameters=None,
                      max_iterations=10):
     """The program fit on the chosen trials, then the uncertainty of its result."""
-    chosen = [t for t in campaign.trials if trials is None or t.trial_id in trials]
-    missing = sorted(set(trials or []) - {t.trial_id for t in campaign.trials})
-    if missing:
-        raise Rc1Error(f"{campaign.path}: no trial '{missing[0]}' in the campaign")
+    chosen = choose_trials(campaign, trials)
     with make_executor(workers=workers or min(os.cpu_count() or 1, len(chosen)), scheduler=scheduler) as executor:
         residuals = CampaignResiduals(chosen, executor=executor)
         result = fit_program(residuals, start=start, parameters=parameters, max_iterations=max_iterations)

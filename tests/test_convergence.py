@@ -17,16 +17,9 @@ def _moved(a, b):
 
 
 @pytest.mark.parametrize("case", CASES)
-def test_halving_the_time_step(simulate_cached, case):
+@pytest.mark.parametrize("field", ["time_step_s", "sgn_smoothing_m_s"])
+def test_halving_the_step_or_the_sign_smoothing(simulate_cached, case, field):
     scenario = Scenario(failures=CASES[case])
     n = scenario.numerics
-    finer = dataclasses.replace(scenario, numerics=dataclasses.replace(n, time_step_s=n.time_step_s / 2))
+    finer = dataclasses.replace(scenario, numerics=dataclasses.replace(n, **{field: getattr(n, field) / 2}))
     assert _moved(simulate_cached(scenario), simulate_cached(finer)) < 0.01
-
-
-@pytest.mark.parametrize("case", CASES)
-def test_halving_the_sign_smoothing(simulate_cached, case):
-    scenario = Scenario(failures=CASES[case])
-    n = scenario.numerics
-    sharper = dataclasses.replace(scenario, numerics=dataclasses.replace(n, sgn_smoothing_m_s=n.sgn_smoothing_m_s / 2))
-    assert _moved(simulate_cached(scenario), simulate_cached(sharper)) < 0.01
