@@ -1,6 +1,7 @@
 """Model versus measurements: replay every trial, score it as the paper does (Eq. 6, Table 2), and
 measure how well the signals fit over time."""
 
+import contextlib
 import dataclasses
 import math
 import os
@@ -151,22 +152,20 @@ def compare_campaign(campaign: Campaign, friction: Optional[Friction] = None, ef
                      workers: Optional[int] = None, progress=None) -> CampaignReport:
     """Replay every trial with `friction` (and `effects`) and score it; trials run in parallel on
     `workers` processes (default: every core), each building its own Diagram."""
-    workers = workers or os.cpu_count() or 1
+    workers = min(workers or os.cpu_count() or 1, len(campaign.trials))
     friction = friction or Friction()
     trials = campaign.trials
-    if workers == 1 or len(trials) == 1:
+    with contextlib.ExitStack() as stack:
+        if workers == 1:
+            results = (_replay_and_score(t, friction, effects, numerics) for t in trials)
+        else:
+            pool = stack.enter_context(make_executor(workers=workers))
+            results = (f.result() for f in [pool.submit(_replay_and_score, t, friction, effects, numerics)
+                                             for t in trials])
         outputs = []
-        for k, trial in enumerate(trials):
-            outputs.append(_replay_and_score(trial, friction, effects, numerics))
+        for k, (trial, output) in enumerate(zip(trials, results, strict=True)):
+            outputs.append(output)
             if progress:
                 progress(k + 1, len(trials), trial.trial_id)
-    else:
-        with make_executor(workers=min(workers, len(trials))) as pool:
-            futures = [pool.submit(_replay_and_score, trial, friction, effects, numerics) for trial in trials]
-            outputs = []
-            for k, (trial, future) in enumerate(zip(trials, futures, strict=True)):
-                outputs.append(future.result())
-                if progress:
-                    progress(k + 1, len(trials), trial.trial_id)
     return CampaignReport(campaign=str(campaign.path), friction=friction, trials=[o[0] for o in outputs],
                           runs={t.trial_id: o[1] for t, o in zip(trials, outputs, strict=True)})

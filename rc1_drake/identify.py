@@ -41,14 +41,27 @@ DEFAULT_PARAMETERS = [
 _REPLAYERS: dict = {}  # per worker process: trial source -> Replayer (its Diagram and reference)
 
 
-def _replay_error(trial, friction: Friction, effects=None) -> float:
-    from .compare import simulator_error
+def _replay(trial, friction: Friction, effects=None):
+    """Replay `trial`, reusing this process's Replayer for it."""
     from .replay import Replayer
 
     key = str(trial.source or trial.trial_id)
     if key not in _REPLAYERS:
         _REPLAYERS[key] = Replayer(trial)
-    run = _REPLAYERS[key].run(friction, effects)
+    return _REPLAYERS[key].run(friction, effects)
+
+
+def _map_trials(function, trials, friction, effects, executor) -> list:
+    """function(trial, friction, effects) for every trial, in this process or on the executor."""
+    if executor is None:
+        return [function(t, friction, effects) for t in trials]
+    return [f.result() for f in [executor.submit(function, t, friction, effects) for t in trials]]
+
+
+def _replay_error(trial, friction: Friction, effects=None) -> float:
+    from .compare import simulator_error
+
+    run = _replay(trial, friction, effects)
     return simulator_error(run.head_xy[-1], trial.final_head_xy, trial.initial_head_pose[:2])
 
 
@@ -63,11 +76,7 @@ class Eq6Objective:
         self._cache: Dict[tuple, float] = {}
 
     def per_trial(self, friction: Friction) -> List[float]:
-        if self.executor is None:
-            errors = [_replay_error(t, friction, self.effects) for t in self.trials]
-        else:
-            futures = [self.executor.submit(_replay_error, t, friction, self.effects) for t in self.trials]
-            errors = [f.result() for f in futures]
+        errors = _map_trials(_replay_error, self.trials, friction, self.effects, self.executor)
         self.simulations += len(self.trials)
         return errors
 
@@ -248,12 +257,7 @@ def trial_residual(trial, run) -> np.ndarray:
 
 
 def _replay_residual(trial, friction: Friction, effects=None) -> np.ndarray:
-    from .replay import Replayer
-
-    key = str(trial.source or trial.trial_id)
-    if key not in _REPLAYERS:
-        _REPLAYERS[key] = Replayer(trial)
-    return trial_residual(trial, _REPLAYERS[key].run(friction, effects))
+    return trial_residual(trial, _replay(trial, friction, effects))
 
 
 class CampaignResiduals:
@@ -264,11 +268,7 @@ class CampaignResiduals:
         self.simulations = 0
 
     def __call__(self, friction: Friction) -> np.ndarray:
-        if self.executor is None:
-            parts = [_replay_residual(t, friction, self.effects) for t in self.trials]
-        else:
-            parts = [f.result() for f in [self.executor.submit(_replay_residual, t, friction, self.effects)
-                                          for t in self.trials]]
+        parts = _map_trials(_replay_residual, self.trials, friction, self.effects, self.executor)
         self.simulations += len(self.trials)
         return np.concatenate(parts)
 
