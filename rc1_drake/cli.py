@@ -109,10 +109,14 @@ def make_parser() -> argparse.ArgumentParser:
 
     idn = sub.add_parser("identify", help="identify the five friction coefficients from a campaign")
     idn.add_argument("campaign", type=Path)
-    idn.add_argument("--method", choices=("avs", "program"), default="avs",
+    idn.add_argument("--method", choices=("avs", "program", "equation-error"), default="avs",
                      help="avs: the paper's Alternating Variable Search; program: least squares of the standardized "
-                          "residuals, Levenberg-Marquardt steps as MathematicalPrograms solved by SNOPT")
+                          "residuals, Levenberg-Marquardt steps as MathematicalPrograms solved by SNOPT, started from "
+                          "what equation error identifies; equation-error: inverse dynamics from camera and "
+                          "potentiometers, linear least squares, no simulation")
     idn.add_argument("--trials", metavar="IDS", help="comma-separated trial ids to fit (default: all)")
+    idn.add_argument("--validation", metavar="IDS",
+                     help="comma-separated held-out trial ids to score the result on (default: the trials not fitted)")
     idn.add_argument("--iterations", type=_positive_int, default=10, metavar="N",
                      help="AVS iterations, or the program fit's at most (default 10)")
     idn.add_argument("--start", type=Path, metavar="FRICTION.yaml",
@@ -343,12 +347,15 @@ def cmd_sweep(args) -> int:
 def cmd_identify(args) -> int:
     import matplotlib.pyplot as plt
 
-    from .identify import (DEFAULT_PARAMETERS, PAPER_MANUAL, avs_figure, friction_to_yaml, identify_avs,
-                           identify_program, load_friction_file)
+    from .identify import (DEFAULT_PARAMETERS, PAPER_MANUAL, avs_figure, friction_to_yaml, held_out_errors,
+                           identify_avs, identify_equation_error, identify_program, load_friction_file, seeded_start)
     from .measurements import load_campaign
 
+    def ids(text):
+        return None if not text else [t.strip() for t in text.split(",") if t.strip()]
+
     campaign = load_campaign(args.campaign)
-    trials = None if not args.trials else [t.strip() for t in args.trials.split(",") if t.strip()]
+    trials, validation = ids(args.trials), ids(args.validation)
     parameters = [dataclasses.replace(p, frozen=p.name in args.freeze) for p in DEFAULT_PARAMETERS]
     start_friction = load_friction_file(args.start) if args.start else PAPER_MANUAL
 
@@ -356,27 +363,48 @@ def cmd_identify(args) -> int:
         print(f"  iteration {done}/{total}: {name}, mean Eq. 6 error {error:.2f}%", file=sys.stderr, flush=True)
 
     start = time.perf_counter()
+    record, spread, warnings = {}, None, []
     if args.method == "avs":
         result, spread = identify_avs(campaign, trials=trials, iterations=args.iterations, workers=args.workers,
                                       scheduler=args.scheduler, parameters=parameters, progress=progress,
                                       start=start_friction)
         print("Friction identification by AVS (paper Table 1; * = the coefficient each iteration varied):")
         print(result.table())
-    else:
+    elif args.method == "program":
+        if not args.start:
+            start_friction, seed = seeded_start(campaign, trials=trials, start=start_friction, parameters=parameters)
+            if seed is not None:
+                used = [n for n, ok in zip(seed.names, seed.identifiable, strict=True) if ok]
+                print(f"start: equation error identified {', '.join(used) or 'nothing'} "
+                      f"({seed.wall_time_s:.0f} s, no simulation); the rest from the paper's manual values")
+                record["equation_error_start"] = seed.to_json()
         result, spread = identify_program(campaign, trials=trials, workers=args.workers, scheduler=args.scheduler,
                                           parameters=parameters, max_iterations=args.iterations, start=start_friction)
         print(f"Friction identification by least squares ({result.iterations} iterations, cost "
               f"{result.cost_start:.1f} -> {result.cost:.1f}):")
-    wall = time.perf_counter() - start
-    print()
-    print(f"Uncertainty at the result (residual Jacobian; standardized residual RMS {spread.residual_rms:.2f}):")
-    print(spread.table())
-    for warning in spread.warnings():
+    else:
+        result = identify_equation_error(campaign, trials=trials, start=start_friction, parameters=parameters)
+        print(f"Friction identification by equation error (inverse dynamics, {result.wall_time_s:.0f} s, no simulation):")
+        print(result.table())
+        warnings = result.warnings()
+    fit_simulations = result.simulations + (spread.simulations if spread else 0)
+    if spread is not None:
+        print()
+        print(f"Uncertainty at the result (residual Jacobian; standardized residual RMS {spread.residual_rms:.2f}):")
+        print(spread.table())
+        warnings = spread.warnings()
+    for warning in warnings:
         print(f"warning: {warning}")
-    print(f"{result.simulations + spread.simulations} simulations, {wall:.0f} s")
+    fit_wall = time.perf_counter() - start
+    held = held_out_errors(campaign, result.friction, trials=trials, validation=validation, workers=args.workers,
+                           scheduler=args.scheduler)
+    print(held.line())
+    print(f"fit: {fit_simulations} simulations, {fit_wall:.0f} s; errors: {held.simulations} more simulations")
     if args.json:
-        record = {**result.to_json(), "uncertainty": dataclasses.asdict(spread), "warnings": spread.warnings(),
-                  "simulations": result.simulations + spread.simulations, "wall_time_s": wall}
+        record.update(result.to_json())
+        record.update({"uncertainty": dataclasses.asdict(spread) if spread else None, "warnings": warnings,
+                       "simulations": fit_simulations, "wall_time_s": fit_wall,
+                       "held_out": dataclasses.asdict(held)})
         _write_atomically(args.json, lambda p: p.write_text(json.dumps(record, indent=2, default=float) + "\n"))
     if args.out:
         _write_atomically(args.out, lambda p: p.write_text(friction_to_yaml(result.friction)))

@@ -422,3 +422,62 @@ def identify_program(campaign, *, trials=None, workers=None, scheduler=None, sta
         result = fit_program(residuals, start=start, parameters=parameters, max_iterations=max_iterations)
         spread = uncertainty(residuals, result.friction, parameters=parameters)
     return result, spread
+
+
+def identify_equation_error(campaign, *, trials=None, start=PAPER_MANUAL, parameters=None, effects=None, seed=0):
+    """The equation-error fit (equation_error.py) on the chosen trials: no simulation."""
+    from .equation_error import fit_equation_error
+
+    return fit_equation_error(choose_trials(campaign, trials), start=start, parameters=parameters, effects=effects,
+                              seed=seed)
+
+
+def seeded_start(campaign, *, trials=None, start=PAPER_MANUAL, parameters=None) -> tuple:
+    """`start` with the coefficients that equation error identifies from the chosen trials replaced by its
+    estimates (no simulation): (start, EquationErrorResult or None when no trial has a camera)."""
+    chosen = choose_trials(campaign, trials)
+    if not any(t.camera is not None and not t.failed_joints for t in chosen):
+        return start, None
+    from .equation_error import fit_equation_error
+
+    first = fit_equation_error(chosen, start=start, parameters=parameters)
+    found = {n: getattr(first.friction, n) for n, ok in zip(first.names, first.identifiable, strict=True) if ok}
+    return dataclasses.replace(start, **found), first
+
+
+@dataclasses.dataclass
+class HeldOut:
+    """Mean Eq. 6 error (%) of the result on the trials it was fitted to and on held-out trials."""
+
+    estimation_trials: List[str]
+    validation_trials: List[str]
+    estimation_error_pct: float
+    validation_error_pct: Optional[float]  # None without held-out trials
+    simulations: int
+
+    def line(self) -> str:
+        held = ("no held-out trials" if self.validation_error_pct is None else
+                f"held-out {self.validation_error_pct:.2f}% ({len(self.validation_trials)} trials)")
+        return (f"mean Eq. 6 error: estimation {self.estimation_error_pct:.2f}% ({len(self.estimation_trials)} trials), "
+                f"{held}")
+
+
+def held_out_errors(campaign, friction: Friction, *, trials=None, validation=None, workers=None,
+                    scheduler=None) -> HeldOut:
+    """Eq. 6 errors of `friction` on the estimation trials (`trials`, all when None) and on the validation
+    trials (`validation`; by default the campaign's other trials)."""
+    estimation = choose_trials(campaign, trials)
+    if validation is None:
+        held = [t for t in campaign.trials if t not in estimation]
+    else:
+        held = choose_trials(campaign, validation)
+        overlap = sorted({t.trial_id for t in held} & {t.trial_id for t in estimation})
+        if overlap:
+            raise Rc1Error(f"{campaign.path}: trial '{overlap[0]}' is both an estimation and a validation trial")
+    everything = estimation + held
+    with make_executor(workers=workers or min(os.cpu_count() or 1, len(everything)), scheduler=scheduler) as executor:
+        errors = Eq6Objective(everything, executor=executor).per_trial(friction)
+    k = len(estimation)
+    return HeldOut(estimation_trials=[t.trial_id for t in estimation], validation_trials=[t.trial_id for t in held],
+                   estimation_error_pct=float(np.mean(errors[:k])),
+                   validation_error_pct=float(np.mean(errors[k:])) if held else None, simulations=len(everything))

@@ -10,7 +10,7 @@ import dataclasses
 import json
 import math
 from pathlib import Path
-from typing import List
+from typing import List, Optional
 
 import numpy as np
 
@@ -25,6 +25,7 @@ class Case:
     failed_joints: List[int]
     trials: int
     bias_deg: float = 0.0
+    gait: Optional[Gait] = None  # the commanded gait (its bias replaced by bias_deg); None: the paper's
 
 
 @dataclasses.dataclass
@@ -72,9 +73,11 @@ def synthesize_campaign(folder, *, design=PAPER_DESIGN, friction=None, effects=N
     for case in design:
         for k in range(case.trials):
             label = ("j" + "_".join(map(str, case.failed_joints)) if case.failed_joints else "nominal") + (
-                "_bias" if case.bias_deg else "")
+                "_bias" if case.bias_deg else "") + (
+                f"_f{case.gait.frequency_deg_s:g}_p{case.gait.phase_step_deg:g}" if case.gait else "")
             scenario = Scenario(
-                gait=Gait(bias_deg=case.bias_deg, phase_offset_deg=float(rng.normal(0, variation.phase_deg))),
+                gait=dataclasses.replace(case.gait or Gait(), bias_deg=case.bias_deg,
+                                         phase_offset_deg=float(rng.normal(0, variation.phase_deg))),
                 friction=friction, effects=effects, failures=[Failure(joint=j) for j in case.failed_joints],
                 start=Start(x_m=float(rng.normal(0, variation.position_m)), y_m=float(rng.normal(0, variation.position_m)),
                             heading_deg=float(rng.normal(0, variation.heading_deg))),
