@@ -269,13 +269,17 @@ def _clustered_fit(A, b, cluster, lower, upper):
 
 
 def fit_equation_error(trials, *, start: Friction, parameters=None, sgn_smoothing_m_s: float = 1e-3,
-                       effects: Optional[Effects] = None, noise=(0.005, math.radians(0.5), math.radians(0.25)),
+                       effects: Optional[Effects] = None, noise=None,
                        seed: int = 0, max_relative_error: float = 0.3) -> EquationErrorResult:
     """Fit the free wheel coefficients of `parameters` from the camera and potentiometer samples of the
-    working-joint trials among `trials` (module docstring). `noise` = the camera's position and yaw and
-    the potentiometers' standard deviations (data/README.md), added once more to measure the slip noise
-    (for the gate) and the noise bias (SIMEX)."""
+    working-joint trials among `trials` (module docstring). `noise` (a synthesize.Noise; default: the
+    sensors of data/README.md): its camera and potentiometer deviations are added once more to measure
+    the slip noise (for the gate) and the noise bias (SIMEX)."""
     from .identify import DEFAULT_PARAMETERS
+    from .synthesize import Noise
+
+    noise = noise or Noise()
+    extra_noise = (noise.camera_m, math.radians(noise.camera_yaw_deg), math.radians(noise.potentiometer_deg))
 
     began = time.perf_counter()
     parameters = parameters or DEFAULT_PARAMETERS
@@ -296,7 +300,7 @@ def fit_equation_error(trials, *, start: Friction, parameters=None, sgn_smoothin
         if measured is None:
             skipped.append(trial.trial_id)
             continue
-        noisier = trajectory_samples(trial, rng=rng, extra_noise=noise)
+        noisier = trajectory_samples(trial, rng=rng, extra_noise=extra_noise)
         sparser = trajectory_samples(trial, every=2)
         rows = [dynamics.rows(measured), dynamics.rows(noisier), dynamics.rows(sparser)]
         gate = [max(GATE_EPS * sgn_smoothing_m_s, GATE_SIGMAS * float(np.sqrt(np.mean((rows[1][u] - rows[0][u]) ** 2))))
