@@ -94,8 +94,7 @@ def test_uncertainty_flags_what_the_trials_cannot_identify(tmp_path):
 
 def test_program_fit_descends_within_bounds(campaign, tmp_path):
     """The least-squares fit never raises the cost, keeps to the bounds, counts its simulations and
-    writes the friction file. (Recovering a known coefficient within its interval is not shown yet:
-    see the README, "Friction identification".)"""
+    writes the friction file."""
     out = tmp_path / "f.yaml"
     start = tmp_path / "start.yaml"
     start.write_text(friction_to_yaml(Friction(mu_long=0.08)))
@@ -109,3 +108,29 @@ def test_program_fit_descends_within_bounds(campaign, tmp_path):
     # 1 start + per iteration 1 Jacobian column and >= 1 trial step, then 1 + 1 for the uncertainty.
     assert record["simulations"] >= 1 + 2 + 2
     assert load_friction_file(out).mu_long == pytest.approx(record["friction"]["mu_long"], rel=1e-5)
+
+
+def test_program_fit_recovers_what_the_trials_identify_and_flags_the_rest(tmp_path):
+    """Synthetic round trip (noise as in data/README.md): from mu_lat 1.0 and mu_long 0.08 the fit
+    recovers the truth (1.5, 0.12) within its 95% intervals. Freeing c_long as well, the trials of one
+    gait speed cannot tell rolling resistance's Coulomb part from its viscous part: both are reported not
+    identifiable, strongly correlated, instead of being trusted."""
+    from rc1_drake.identify import DEFAULT_PARAMETERS, CampaignResiduals, identify_program, uncertainty
+
+    folder = tmp_path / "c"
+    synthesize_campaign(folder, design=[Case([7], 1), Case([], 1)], seed=8,
+                        stop=Stop(line_x_m=None, revolutions=None, time_limit_s=3.0))
+    campaign = load_campaign(folder)
+    truth = Friction()
+
+    def free(*names):
+        return [dataclasses.replace(p, frozen=p.name not in names) for p in DEFAULT_PARAMETERS]
+
+    result, spread = identify_program(campaign, start=Friction(mu_lat=1.0, mu_long=0.08),
+                                      parameters=free("mu_lat", "mu_long"), max_iterations=6, workers=2)
+    assert result.cost < result.cost_start
+    for name, value, se, identifiable in zip(spread.names, spread.values, spread.standard_errors,
+                                             spread.identifiable, strict=True):
+        assert identifiable and abs(value - getattr(truth, name)) <= 1.96 * se, (name, value, se)
+    confounded = uncertainty(CampaignResiduals(campaign.trials), truth, parameters=free("mu_long", "c_long"))
+    assert confounded.identifiable == [False, False] and abs(confounded.correlation[0][1]) > 0.9
