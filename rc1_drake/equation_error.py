@@ -246,11 +246,18 @@ class EquationErrorResult:
     def to_json(self) -> dict:
         out = dataclasses.asdict(self)
         out.update(method="equation-error", friction=dataclasses.asdict(self.friction), warnings=self.warnings())
-        return {k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in out.items()}
+        return {k: _finite_or_none(v) for k, v in out.items()}
 
 
 def _fmt(x: float) -> str:
-    return f"{x:.3g}" if math.isfinite(x) else "inf"
+    return f"{x:.3g}" if math.isfinite(x) else ("-" if math.isnan(x) else "inf")
+
+
+def _finite_or_none(value):
+    """JSON has no inf or NaN: write null for them, in lists too."""
+    if isinstance(value, list):
+        return [_finite_or_none(v) for v in value]
+    return None if isinstance(value, float) and not math.isfinite(value) else value
 
 
 def _clustered_fit(A, b, cluster, lower, upper):
