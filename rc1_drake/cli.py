@@ -348,14 +348,16 @@ def cmd_identify(args) -> int:
     import matplotlib.pyplot as plt
 
     from .identify import (DEFAULT_PARAMETERS, PAPER_MANUAL, avs_figure, friction_to_yaml, held_out_errors,
-                           identify_avs, identify_equation_error, identify_program, load_friction_file, seeded_start)
+                           identify_avs, identify_equation_error, identify_program, load_friction_file, seeded_start,
+                           split_trials)
     from .measurements import load_campaign
 
     def ids(text):
         return None if not text else [t.strip() for t in text.split(",") if t.strip()]
 
     campaign = load_campaign(args.campaign)
-    trials, validation = ids(args.trials), ids(args.validation)
+    trials = ids(args.trials)
+    estimation, validation = split_trials(campaign, trials=trials, validation=ids(args.validation))
     parameters = [dataclasses.replace(p, frozen=p.name in args.freeze) for p in DEFAULT_PARAMETERS]
     start_friction = load_friction_file(args.start) if args.start else PAPER_MANUAL
 
@@ -396,8 +398,7 @@ def cmd_identify(args) -> int:
     for warning in warnings:
         print(f"warning: {warning}")
     fit_wall = time.perf_counter() - start
-    held = held_out_errors(campaign, result.friction, trials=trials, validation=validation, workers=args.workers,
-                           scheduler=args.scheduler)
+    held = held_out_errors(estimation, validation, result.friction, workers=args.workers, scheduler=args.scheduler)
     print(held.line())
     print(f"fit: {fit_simulations} simulations, {fit_wall:.0f} s; errors: {held.simulations} more simulations")
     if args.json:

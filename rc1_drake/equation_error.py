@@ -74,8 +74,13 @@ class TrajectorySamples:
     a: np.ndarray  # (N, 16)
 
 
-def _spline_derivatives(t, y, t_eval, lam=None):
-    spline = make_smoothing_spline(t, y, lam=lam)
+def sees_whole_configuration(trial) -> bool:
+    """A trial whose configuration is measured: a camera, and no failed joint (whose angle is not)."""
+    return trial.camera is not None and not trial.failed_joints
+
+
+def _spline_derivatives(t, y, t_eval):
+    spline = make_smoothing_spline(t, y)
     return spline(t_eval), spline.derivative(1)(t_eval), spline.derivative(2)(t_eval)
 
 
@@ -85,7 +90,7 @@ def trajectory_samples(trial, *, trim_s: float = TRIM_S, rng=None, extra_noise=N
     has no camera or a failed joint. `extra_noise` = (camera_m, camera_yaw_rad, potentiometer_rad) adds
     that much noise to the measurements first (for the SIMEX bias estimate); `every` = k keeps every
     k-th sample (for the differentiation bias estimate)."""
-    if trial.camera is None or trial.failed_joints:
+    if not sees_whole_configuration(trial):
         return None
     t = (trial.t - trial.t[0])[::every]
     camera = trial.camera[::every].copy()

@@ -443,10 +443,11 @@ def identify_equation_error(campaign, *, trials=None, start=PAPER_MANUAL, parame
 def seeded_start(campaign, *, trials=None, start=PAPER_MANUAL, parameters=None) -> tuple:
     """`start` with the coefficients that equation error identifies from the chosen trials replaced by its
     estimates (no simulation): (start, EquationErrorResult or None when no trial has a camera)."""
+    from .equation_error import fit_equation_error, sees_whole_configuration
+
     chosen = choose_trials(campaign, trials)
-    if not any(t.camera is not None and not t.failed_joints for t in chosen):
+    if not any(sees_whole_configuration(t) for t in chosen):
         return start, None
-    from .equation_error import fit_equation_error
 
     first = fit_equation_error(chosen, start=start, parameters=parameters)
     found = {n: getattr(first.friction, n) for n, ok in zip(first.names, first.identifiable, strict=True) if ok}
@@ -470,22 +471,27 @@ class HeldOut:
                 f"{held}")
 
 
-def held_out_errors(campaign, friction: Friction, *, trials=None, validation=None, workers=None,
-                    scheduler=None) -> HeldOut:
-    """Eq. 6 errors of `friction` on the estimation trials (`trials`, all when None) and on the validation
-    trials (`validation`; by default the campaign's other trials)."""
+def split_trials(campaign, *, trials=None, validation=None) -> tuple:
+    """(estimation, validation) trials: `trials` (all when None) and `validation` (by default the
+    campaign's other trials); Rc1Error for an unknown id or a trial in both."""
     estimation = choose_trials(campaign, trials)
     if validation is None:
-        held = [t for t in campaign.trials if t not in estimation]
-    else:
-        held = choose_trials(campaign, validation)
-        overlap = sorted({t.trial_id for t in held} & {t.trial_id for t in estimation})
-        if overlap:
-            raise Rc1Error(f"{campaign.path}: trial '{overlap[0]}' is both an estimation and a validation trial")
-    everything = estimation + held
+        return estimation, [t for t in campaign.trials if t not in estimation]
+    held = choose_trials(campaign, validation)
+    overlap = sorted({t.trial_id for t in held} & {t.trial_id for t in estimation})
+    if overlap:
+        raise Rc1Error(f"{campaign.path}: trial '{overlap[0]}' is both an estimation and a validation trial")
+    return estimation, held
+
+
+def held_out_errors(estimation, validation, friction: Friction, *, workers=None, scheduler=None) -> HeldOut:
+    """Eq. 6 errors of `friction` on the estimation trials and on the validation trials (split_trials)."""
+    everything = estimation + validation
     with make_executor(workers=workers or min(os.cpu_count() or 1, len(everything)), scheduler=scheduler) as executor:
         errors = Eq6Objective(everything, executor=executor).per_trial(friction)
     k = len(estimation)
-    return HeldOut(estimation_trials=[t.trial_id for t in estimation], validation_trials=[t.trial_id for t in held],
+    return HeldOut(estimation_trials=[t.trial_id for t in estimation],
+                   validation_trials=[t.trial_id for t in validation],
                    estimation_error_pct=float(np.mean(errors[:k])),
-                   validation_error_pct=float(np.mean(errors[k:])) if held else None, simulations=len(everything))
+                   validation_error_pct=float(np.mean(errors[k:])) if validation else None,
+                   simulations=len(everything))

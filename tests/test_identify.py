@@ -134,3 +134,13 @@ def test_program_fit_recovers_what_the_trials_identify_and_flags_the_rest(tmp_pa
         assert identifiable and abs(value - getattr(truth, name)) <= 1.96 * se, (name, value, se)
     confounded = uncertainty(CampaignResiduals(campaign.trials), truth, parameters=free("mu_long", "c_long"))
     assert confounded.identifiable == [False, False] and abs(confounded.correlation[0][1]) > 0.9
+
+
+def test_bad_validation_trials_fail_before_any_fit(campaign, capsys):
+    """A --validation id the campaign lacks, or one that is also fitted, is a one-line error at once."""
+    (only,) = [t.trial_id for t in campaign.trials]
+    assert main(["identify", str(campaign.path), "--validation", "nope"]) == 2
+    assert "no trial 'nope'" in capsys.readouterr().err
+    assert main(["identify", str(campaign.path), "--validation", only]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.endswith(f"trial '{only}' is both an estimation and a validation trial") and "\n" not in err
