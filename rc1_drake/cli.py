@@ -10,7 +10,7 @@ import sys
 import time
 from pathlib import Path
 
-from .config import (DEFAULT_SCENARIOS, EFFECT_NAMES, FAILURE_MODES, FRICTION_NAMES, Effects, Failure, Friction,
+from .config import (DEFAULT_SCENARIOS, FAILURE_MODES, FRICTION_NAMES, Failure, Friction, Scenario,
                      Rc1Error, Stop, load_scenario, validate)
 
 
@@ -62,18 +62,25 @@ def make_parser() -> argparse.ArgumentParser:
     run.add_argument("--friction", type=_friction_override, action="append", default=[], metavar="NAME=VALUE",
                      help=f"set a friction coefficient ({', '.join(FRICTION_NAMES)}); repeatable")
     run.add_argument("--friction-file", type=Path, metavar="PATH", help="friction YAML, e.g. from rc1 identify --out")
+    run.add_argument("--effect", type=_effect, action="append", default=[], metavar="NAME=VALUE",
+                     help="add a physical effect (EFFECT=VALUE or PARAMETER=VALUE, see rc1 effects); repeatable")
     run.add_argument("--time-limit-s", type=_float, metavar="T", help="stop after T seconds at the latest")
     run.add_argument("--json", type=Path, metavar="PATH", help="write the summary as JSON")
     run.add_argument("--plot", type=Path, metavar="PATH", help="write the head path figure (PNG, PDF, SVG)")
 
     syn = sub.add_parser("synthesize", help="write a synthetic campaign in the measurement format")
     syn.add_argument("out", type=Path, help="campaign folder to create (must not exist)")
+    syn.add_argument("--design", choices=["paper", "identification"], default="paper",
+                     help="paper: its cases, 5 trials each and 1 joint-2 trial; identification: 8 cases of "
+                          "gaits and failures under which all five friction coefficients are identifiable")
     syn.add_argument("--trials-per-case", type=_positive_int, metavar="N",
-                     help="trials in each case of the paper's design (default: 5, and 1 joint-2 trial)")
+                     help="trials in each case (the paper design's lone joint-2 trial stays one)")
+    syn.add_argument("--time-limit-s", type=_float, metavar="T", help="end every trial after T s at the latest")
     syn.add_argument("--friction", type=_friction_override, action="append", default=[], metavar="NAME=VALUE",
                      help="the truth's friction coefficient (repeatable; default: the paper's identified set)")
     syn.add_argument("--effect", type=_effect, action="append", default=[], metavar="NAME=VALUE",
-                     help=f"a physical effect in the truth ({', '.join(EFFECT_NAMES)}); repeatable")
+                     help="a physical effect in the truth (EFFECT=VALUE or PARAMETER=VALUE, see rc1 effects); "
+                          "repeatable")
     syn.add_argument("--noise-scale", type=_float, default=1.0, metavar="S", help="multiply every sensor noise by S")
     syn.add_argument("--no-camera", action="store_true", help="leave out the overhead camera columns")
     syn.add_argument("--seed", type=int, default=0)
@@ -136,6 +143,8 @@ def make_parser() -> argparse.ArgumentParser:
     cmpn.add_argument("--time-limit-s", type=_float, default=30.0, metavar="T")
     cmpn.add_argument("--workers", type=_positive_int, metavar="N", help="local processes (default: every core)")
     cmpn.add_argument("--scheduler", metavar="ADDRESS", help="a Dask scheduler")
+
+    sub.add_parser("effects", help="list the candidate physical effects and their parameters")
     return parser
 
 
@@ -165,12 +174,12 @@ def _positive_int(text: str) -> int:
 
 
 def _effect(text: str) -> tuple[str, float]:
-    name, sep, value = text.partition("=")
-    if name not in EFFECT_NAMES:
-        raise argparse.ArgumentTypeError(f"unknown effect '{name}' (known: {', '.join(EFFECT_NAMES)})")
-    if not sep:
-        raise argparse.ArgumentTypeError(f"'{text}' is not NAME=VALUE")
-    return name, _float(value)
+    from .effects import parse_effect
+
+    try:
+        return parse_effect(text)
+    except ValueError as e:
+        raise argparse.ArgumentTypeError(str(e)) from None
 
 
 def scenario_from_args(args):
@@ -190,7 +199,9 @@ def scenario_from_args(args):
     stop = scenario.stop
     if args.time_limit_s is not None:
         stop = dataclasses.replace(stop, time_limit_s=args.time_limit_s)
-    scenario = dataclasses.replace(scenario, failures=failures, gait=gait, friction=friction, stop=stop)
+    effects = {**scenario.effects, **dict(args.effect)}
+    scenario = dataclasses.replace(scenario, failures=failures, gait=gait, friction=friction, stop=stop,
+                                   effects=effects)
     return validate(scenario, where="command line")
 
 
@@ -224,17 +235,21 @@ def cmd_run(args) -> int:
 
 
 def cmd_synthesize(args) -> int:
-    from .synthesize import PAPER_DESIGN, Noise, synthesize_campaign
+    from .synthesize import DESIGNS, Noise, synthesize_campaign
 
     if args.out.exists():
         raise Rc1Error(f"{args.out}: already exists; synthesize writes a new campaign folder")
-    design = PAPER_DESIGN
+    design = DESIGNS[args.design]
     if args.trials_per_case:
-        design = [dataclasses.replace(c, trials=args.trials_per_case if c.trials > 1 else c.trials) for c in design]
+        design = [dataclasses.replace(c, trials=args.trials_per_case if c.trials > 1 or args.design != "paper"
+                                      else c.trials) for c in design]
+    stop = None if args.time_limit_s is None else Stop(time_limit_s=args.time_limit_s)
     friction = validate_friction(dict(args.friction))
-    campaign = synthesize_campaign(args.out, design=design, friction=friction, effects=Effects(**dict(args.effect)),
+    effects = dict(args.effect)
+    validate(Scenario(effects=effects), where="command line")
+    campaign = synthesize_campaign(args.out, design=design, friction=friction, effects=effects,
                                    noise=Noise().scaled(args.noise_scale), camera=not args.no_camera, seed=args.seed,
-                                   truth_file=args.truth)
+                                   truth_file=args.truth, stop=stop)
     print(f"wrote {len(campaign.trials)} trials to {args.out}" + (f"; truth in {args.truth}" if args.truth else ""))
     return 0
 
@@ -437,11 +452,21 @@ def cmd_compensate(args) -> int:
     return 0
 
 
+def cmd_effects(args) -> int:
+    from .effects import LIBRARY
+
+    for effect in LIBRARY.values():
+        print(f"{effect.name}: {effect.summary}" + ("" if effect.seen_in_replay else " (gait-driven runs only)"))
+        for p in effect.parameters:
+            print(f"    {p.key:<30} [{p.lower:g}, {p.upper:g}]" + ("" if p.fitted else f"  setting, default {p.default:g}"))
+    return 0
+
+
 def main(argv=None) -> int:
     args = make_parser().parse_args(argv)
     try:
         return {"run": cmd_run, "synthesize": cmd_synthesize, "compare": cmd_compare, "sweep": cmd_sweep,
-                "identify": cmd_identify, "compensate": cmd_compensate}[args.command](args)
+                "identify": cmd_identify, "compensate": cmd_compensate, "effects": cmd_effects}[args.command](args)
     except Rc1Error as e:
         print(f"rc1 {args.command}: error: {e}", file=sys.stderr)
         return 2

@@ -7,7 +7,7 @@ is SI. Library code converts once, through the *_rad accessors here.
 import dataclasses
 import math
 from pathlib import Path
-from typing import List, Optional
+from typing import Dict, List, Optional
 
 from pydrake.common.yaml import yaml_load_typed
 
@@ -77,16 +77,6 @@ FRICTION_NAMES = tuple(f.name for f in dataclasses.fields(Friction))
 
 
 @dataclasses.dataclass
-class Effects:
-    """Physical effects beyond the paper's model. All zero is the paper's model."""
-
-    wheel_toe_deg: float = 0.0  # every wheel's rolling direction yawed counter-clockwise from its module's axis
-
-
-EFFECT_NAMES = tuple(f.name for f in dataclasses.fields(Effects))
-
-
-@dataclasses.dataclass
 class Failure:
     """A joint failing at time_s. Modes: `free` (the paper's: the servo is unpowered, only c_joint and
     the joint limits act), `locked` (held at the angle it had when it failed, as in Mehta et al.),
@@ -145,7 +135,8 @@ class Scenario:
     gait: Gait = dataclasses.field(default_factory=Gait)
     servo: Servo = dataclasses.field(default_factory=Servo)
     friction: Friction = dataclasses.field(default_factory=Friction)
-    effects: Effects = dataclasses.field(default_factory=Effects)
+    # Physical effects beyond the paper's model by parameter key (effects.py); empty is the paper's model.
+    effects: Dict[str, float] = dataclasses.field(default_factory=dict)
     failures: List[Failure] = dataclasses.field(default_factory=list)
     start: Start = dataclasses.field(default_factory=Start)
     heading_control: HeadingControl = dataclasses.field(default_factory=HeadingControl)
@@ -221,8 +212,9 @@ def validate(s: Scenario, *, where: str = "scenario") -> Scenario:
             finite(f"servo.{f.name}", getattr(s.servo, f.name), nonneg=True)
     for name in FRICTION_NAMES:
         finite(f"friction.{name}", getattr(s.friction, name), nonneg=True)
-    for name in EFFECT_NAMES:
-        finite(f"effects.{name}", getattr(s.effects, name))
+    from .effects import validate_effects  # effects.py builds on this module
+
+    validate_effects(s.effects, where=where)
     seen = set()
     for k, fail in enumerate(s.failures):
         if not 1 <= fail.joint <= NUM_JOINTS:

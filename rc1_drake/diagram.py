@@ -23,6 +23,7 @@ from pydrake.systems.primitives import (AffineSystem, LinearSystem, LogVectorOut
                                         TrajectorySource)
 
 from .config import Scenario
+from .effects import commanded_gait
 from .friction import FrictionForces
 from .gait import add_gait_source, serpenoid_parameters
 from .model import RC1Plant, add_rc1_plant
@@ -48,7 +49,7 @@ class RC1Diagram:
 def build_key(scenario: Scenario, joint_reference=None) -> tuple:
     """The scenario fields a built Diagram depends on; equal keys can share a Diagram."""
     if joint_reference is None:
-        amp, omega, phase, _ = serpenoid_parameters(scenario.gait)
+        amp, omega, phase, _ = serpenoid_parameters(commanded_gait(scenario.gait, scenario.effects))
         source = (tuple(amp), tuple(omega), tuple(phase))
     else:
         source = ("joint_reference", id(joint_reference))
@@ -92,7 +93,8 @@ def build_diagram(scenario: Scenario, *, joint_reference=None) -> RC1Diagram:
     plant = rc1.plant
     if joint_reference is None:
         feedback = add_heading_control(builder, plant, scenario) if scenario.heading_control.active else None
-        desired_state, bias = add_gait_source(builder, scenario.gait, bias_input=feedback)
+        desired_state, bias = add_gait_source(builder, commanded_gait(scenario.gait, scenario.effects),
+                                              bias_input=feedback)
     else:
         source = builder.AddSystem(TrajectorySource(joint_reference, output_derivative_order=1))
         source.set_name("joint_reference")

@@ -46,12 +46,12 @@ What it cannot see, and why:
 import dataclasses
 import math
 import time
-from typing import List, Optional
+from typing import Dict, List, Optional
 
 import numpy as np
 from scipy.interpolate import make_smoothing_spline
 
-from .config import NUM_JOINTS, Effects, Friction, Rc1Error
+from .config import NUM_JOINTS, Friction, Rc1Error
 
 # The four wheel coefficients the base rows see, in this column order.
 WHEEL_NAMES = ("mu_lat", "mu_long", "c_lat", "c_long")
@@ -121,10 +121,20 @@ def trajectory_samples(trial, *, trim_s: float = TRIM_S, rng=None, extra_noise=N
     return TrajectorySamples(trial_id=trial.trial_id, t=te, q=q, v=v, a=a)
 
 
+def _wheel_toe_only(effects: Dict[str, float]) -> float:
+    """The wheel toe (rad): the one effect these rows model; any other is refused, not ignored."""
+    from .effects import active, model_setup
+
+    others = [e.name for e in active(effects) if e.name != "wheel_toe"]
+    if others:
+        raise Rc1Error(f"equation error: effects {', '.join(others)} are not in its rows (only wheel_toe is)")
+    return model_setup(effects).wheel_toe_rad
+
+
 class InverseDynamics:
     """The base rows of the equations of motion, evaluated by the plant, and their friction regressors."""
 
-    def __init__(self, sgn_smoothing_m_s: float = 1e-3, effects: Optional[Effects] = None):
+    def __init__(self, sgn_smoothing_m_s: float = 1e-3, effects: Optional[Dict[str, float]] = None):
         from pydrake.systems.framework import DiagramBuilder
 
         from .friction import GRAVITY_M_S2
@@ -136,7 +146,7 @@ class InverseDynamics:
         g = self.rc1.geometry
         self.normal = g.module_mass[g.wheel_module] * GRAVITY_M_S2
         self.eps = sgn_smoothing_m_s
-        self.toe = g.arrays[4] * np.exp(1j * math.radians((effects or Effects()).wheel_toe_deg))
+        self.toe = g.arrays[4] * np.exp(1j * _wheel_toe_only(effects or {}))
 
     def rows(self, samples: TrajectorySamples) -> dict:
         """Per sample k the base rows A[k] theta = b[k] (theta = WHEEL_NAMES; yaw row divided by
@@ -281,7 +291,7 @@ def _clustered_fit(A, b, cluster, lower, upper):
 
 
 def fit_equation_error(trials, *, start: Friction, parameters=None, sgn_smoothing_m_s: float = 1e-3,
-                       effects: Optional[Effects] = None, noise=None,
+                       effects: Optional[Dict[str, float]] = None, noise=None,
                        seed: int = 0, max_relative_error: float = 0.3) -> EquationErrorResult:
     """Fit the free wheel coefficients of `parameters` from the camera and potentiometer samples of the
     working-joint trials among `trials` (module docstring). `noise` (a synthesize.Noise; default: the

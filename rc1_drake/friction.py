@@ -34,6 +34,7 @@ from pydrake.systems.framework import BasicVector, LeafSystem
 
 from .config import NUM_JOINTS, Friction
 from .kinematics import ChainGeometry, _wheel_kinematics, jit
+from .model import set_payload
 
 GRAVITY_M_S2 = 9.81
 
@@ -46,23 +47,50 @@ def smooth_sign(v, eps):
     return v / np.sqrt(v * v + eps * eps)
 
 
+# Shape of the Coulomb terms beyond the paper (effects.py); zeros give Eqs. 4-5 exactly:
+# [lateral asymmetry a_lat, longitudinal asymmetry a_long, Stribeck ratio r, Stribeck speed v_s (m/s)].
+PAPER_SHAPE = np.array([0.0, 0.0, 0.0, 0.01])
+
+
 @jit
-def wheel_friction_forces(v_long, v_lat, mu_long, mu_lat, c_long, c_lat, normal_force, eps):
+def _coulomb(u, mu_n, eps, asymmetry, ratio, speed):
+    """The Coulomb term mu N (1 + a sgn(u)) (1 + r exp(-(u/v_s)^2)) sgn(u) and the secant and tangent rates
+    of the whole friction law f(u) = -(c u + that): f = -secant u, df/du = -tangent (before adding c).
+
+    a != 0 makes sliding toward +u resist more than toward -u (mu N (1 + a) against mu N (1 - a));
+    r > 0 adds breakaway friction that fades above the Stribeck speed v_s. The tangent is clipped at 0
+    (a Stribeck law falls with speed) so that the implicit solve's matrix stays positive definite."""
+    root = np.sqrt(u * u + eps * eps)
+    s = u / root
+    ds = eps * eps / (root * root * root)
+    decay = np.exp(-(u / speed) ** 2) if ratio != 0.0 else np.zeros_like(u)
+    magnitude = mu_n * (1.0 + asymmetry * s) * (1.0 + ratio * decay)
+    slope = mu_n * (asymmetry * ds * (1.0 + ratio * decay) - (1.0 + asymmetry * s) * ratio * decay * 2.0 * u / speed**2)
+    return magnitude * s, magnitude / root, np.maximum(slope * s + magnitude * ds, 0.0)
+
+
+@jit
+def _wheel_forces(v_long, v_lat, mu_long, mu_lat, c_long, c_lat, normal_force, eps, shape):
+    if eps == 0.0:  # the exact sign: the paper's law (shape terms need eps > 0)
+        return (-(c_long * v_long + mu_long * normal_force * np.sign(v_long)),
+                -(c_lat * v_lat + mu_lat * normal_force * np.sign(v_lat)))
+    coulomb_long = _coulomb(v_long, mu_long * normal_force, eps, shape[1], 0.0, shape[3])[0]
+    coulomb_lat = _coulomb(v_lat, mu_lat * normal_force, eps, shape[0], shape[2], shape[3])[0]
+    return -(c_long * v_long + coulomb_long), -(c_lat * v_lat + coulomb_lat)
+
+
+def wheel_friction_forces(v_long, v_lat, mu_long, mu_lat, c_long, c_lat, normal_force, eps, *, lat_asymmetry=0.0,
+                          long_asymmetry=0.0, stribeck_ratio=0.0, stribeck_speed_m_s=0.01):
     """Longitudinal and lateral friction force on each wheel, in the wheel's frame (Eqs. 4-5).
 
     v_long, v_lat: the wheel centre's velocity along its rolling and lateral axes (m/s);
     normal_force: N per wheel (newtons); eps: sgn() smoothing (m/s). Returns (f_long, f_lat), N.
+    The keyword terms are candidate effects (effects.py; 0 is the paper's model): the Coulomb part
+    becomes mu N (1 + a sgn(v)) sgn(v), and laterally also (1 + r exp(-(v/v_s)^2)) (Stribeck).
     """
-    f_long = -(c_long * v_long + mu_long * normal_force * smooth_sign(v_long, eps))
-    f_lat = -(c_lat * v_lat + mu_lat * normal_force * smooth_sign(v_lat, eps))
-    return f_long, f_lat
-
-
-@jit
-def _damping(u, c, coulomb, eps):
-    """Secant and tangent rates of f(u) = -(c u + coulomb sgn_eps(u)): f = -secant u, df/du = -tangent."""
-    s = 1.0 / np.sqrt(u * u + eps * eps)
-    return c + coulomb * s, c + coulomb * eps * eps * s * s * s
+    shape = np.array([lat_asymmetry, long_asymmetry, stribeck_ratio, stribeck_speed_m_s], dtype=float)
+    return _wheel_forces(np.asarray(v_long, dtype=float), np.asarray(v_lat, dtype=float), mu_long, mu_lat, c_long,
+                         c_lat, np.asarray(normal_force, dtype=float), eps, shape)
 
 
 @jit
@@ -80,41 +108,83 @@ def _add_damping(matrix, jac_long, jac_lat, d_long, d_lat, dt):
 
 
 @jit
-def implicit_friction_force(jac_long, jac_lat, joint_damping, mass_matrix, momentum_free, v, dt, mu_long,
-                            mu_lat, c_long, c_lat, normal_force, eps, newton_steps):
+def _isotropic(u_xy, coulomb, eps):
+    """Isotropic Coulomb friction -C u / sqrt(|u|^2 + eps^2) of a point sliding at u_xy (2,): the force,
+    its secant rate (scalar) and its tangent matrix (2x2, positive semidefinite)."""
+    root = np.sqrt(u_xy[0] ** 2 + u_xy[1] ** 2 + eps * eps)
+    tangent = coulomb / root * (np.eye(2) - np.outer(u_xy, u_xy) / (root * root))
+    return -coulomb * u_xy / root, coulomb / root, tangent
+
+
+@jit
+def _implicit_friction_force(jac_long, jac_lat, joint_damping, mass_matrix, momentum_free, v, dt, mu_long, mu_lat,
+                             c_long, c_lat, normal_force, eps, newton_steps, shape, jac_head, head_coulomb,
+                             joint_coulomb, joint_eps):
+    mass_damped = mass_matrix + dt * np.diag(joint_damping)
+    n_long, n_lat = mu_long * normal_force, mu_lat * normal_force
+
+    def rates(u):
+        _, s_long, t_long = _coulomb(jac_long @ u, n_long, eps, shape[1], 0.0, shape[3])
+        _, s_lat, t_lat = _coulomb(jac_lat @ u, n_lat, eps, shape[0], shape[2], shape[3])
+        return s_long + c_long, s_lat + c_lat, t_long + c_long, t_lat + c_lat
+
+    s_long, s_lat, _, _ = rates(v)
+    matrix = _add_damping(mass_damped, jac_long, jac_lat, s_long, s_lat, dt)
+    if head_coulomb > 0.0:
+        matrix += dt * _isotropic(jac_head @ v, head_coulomb, eps)[1] * (jac_head.T @ jac_head)
+    _, joint_secant, _ = _coulomb(v, joint_coulomb, joint_eps, 0.0, 0.0, 1.0)
+    matrix += dt * np.diag(joint_secant)
+    v_next = np.linalg.solve(matrix, momentum_free)
+    for _ in range(newton_steps):
+        f_long, f_lat = _wheel_forces(jac_long @ v_next, jac_lat @ v_next, mu_long, mu_lat, c_long, c_lat,
+                                      normal_force, eps, shape)
+        joint_force, _, joint_tangent = _coulomb(v_next, joint_coulomb, joint_eps, 0.0, 0.0, 1.0)
+        force = jac_long.T @ f_long + jac_lat.T @ f_lat - joint_force
+        _, _, t_long, t_lat = rates(v_next)
+        matrix = _add_damping(mass_damped, jac_long, jac_lat, t_long, t_lat, dt) + dt * np.diag(joint_tangent)
+        if head_coulomb > 0.0:
+            f_head, _, k_head = _isotropic(jac_head @ v_next, head_coulomb, eps)
+            force += jac_head.T @ f_head
+            matrix += dt * (jac_head.T @ k_head @ jac_head)
+        v_next = v_next - np.linalg.solve(matrix, mass_damped @ v_next - momentum_free - dt * force)
+    return (mass_matrix @ v_next - momentum_free) / dt
+
+
+def implicit_friction_force(jac_long, jac_lat, joint_damping, mass_matrix, momentum_free, v, dt, mu_long, mu_lat,
+                            c_long, c_lat, normal_force, eps, newton_steps, *, shape=PAPER_SHAPE, jac_head=None,
+                            head_coulomb=0.0, joint_coulomb=None, joint_eps=0.01):
     """Generalized friction force of one backward-Euler step (module docstring).
 
     jac_long, jac_lat: (W, nv) wheel velocity Jacobians along the rolling and lateral axes;
     joint_damping: (nv,) viscous joint friction per coordinate (c_joint on failed joints, else 0);
     momentum_free: M v + dt * (every other generalized force); v: the velocity at the step's start.
-    eps must be > 0: the implicit solve needs a finite damping rate at v = 0.
+    eps must be > 0: the implicit solve needs a finite damping rate at v = 0. Candidate effects
+    (effects.py; defaults are the paper's model): `shape` (PAPER_SHAPE's layout), an isotropic
+    Coulomb drag `head_coulomb` (N) on the point whose (2, nv) velocity Jacobian is `jac_head`, and
+    dry joint friction `joint_coulomb` (nv,) in N m, its sign smoothed at `joint_eps` rad/s.
     """
-    coulomb_long = mu_long * normal_force
-    coulomb_lat = mu_lat * normal_force
-    mass_damped = mass_matrix + dt * np.diag(joint_damping)
-    d_long, _ = _damping(jac_long @ v, c_long, coulomb_long, eps)
-    d_lat, _ = _damping(jac_lat @ v, c_lat, coulomb_lat, eps)
-    v_next = np.linalg.solve(_add_damping(mass_damped, jac_long, jac_lat, d_long, d_lat, dt), momentum_free)
-    for _ in range(newton_steps):
-        u_long = jac_long @ v_next
-        u_lat = jac_lat @ v_next
-        f_long, f_lat = wheel_friction_forces(u_long, u_lat, mu_long, mu_lat, c_long, c_lat, normal_force, eps)
-        residual = mass_damped @ v_next - momentum_free - dt * (jac_long.T @ f_long + jac_lat.T @ f_lat)
-        _, t_long = _damping(u_long, c_long, coulomb_long, eps)
-        _, t_lat = _damping(u_lat, c_lat, coulomb_lat, eps)
-        v_next = v_next - np.linalg.solve(_add_damping(mass_damped, jac_long, jac_lat, t_long, t_lat, dt), residual)
-    return (mass_matrix @ v_next - momentum_free) / dt
+    nv = len(v)
+    return _implicit_friction_force(
+        jac_long, jac_lat, joint_damping, mass_matrix, momentum_free, v, dt, mu_long, mu_lat, c_long, c_lat,
+        normal_force, eps, newton_steps, np.asarray(shape, dtype=float),
+        np.zeros((2, nv)) if jac_head is None else np.ascontiguousarray(jac_head, dtype=float), head_coulomb,
+        np.zeros(nv) if joint_coulomb is None else np.asarray(joint_coulomb, dtype=float), joint_eps)
 
 
-# Parameter layout of FrictionForces: the paper's five coefficients, eps, then per joint its state
-# (0 working, 1 failed free: its viscous friction acts, 2 locked: the plant holds it, and the solve
-# predicts so), then per wheel its normal force, then per wheel its toe angle (rad, counter-clockwise,
-# added to the SDF's wheel yaw; 0 in the paper's model).
+# Parameter layout of FrictionForces: the paper's five coefficients, eps; the effect terms (effects.py:
+# PAPER_SHAPE's four, the head's Coulomb drag coefficient and normal force, dry friction of a failed
+# joint, a payload's mass and module); then per joint its state (0 working, 1 failed free: its
+# friction acts, 2 locked: the plant holds it, and the solve predicts so), then per wheel its normal
+# force, then per wheel its toe angle (rad, counter-clockwise, added to the SDF's wheel yaw).
 C_JOINT, MU_LAT, MU_LONG, C_LAT, C_LONG, EPS = range(6)
+SHAPE = slice(6, 10)
+HEAD_MU, HEAD_NORMAL, JOINT_COULOMB, PAYLOAD_KG, PAYLOAD_MODULE = range(10, 15)
+SCALARS = 15
 WORKING, FREE, LOCKED = 0.0, 1.0, 2.0
 LOCKED_DAMPING = 1e4  # N m s/rad: in the prediction only, a locked joint barely moves
-FAILED = slice(6, 6 + NUM_JOINTS)
-PER_WHEEL = 6 + NUM_JOINTS
+JOINT_EPS_RAD_S = 0.01  # sgn() smoothing of a failed joint's dry friction
+FAILED = slice(SCALARS, SCALARS + NUM_JOINTS)
+PER_WHEEL = SCALARS + NUM_JOINTS
 
 
 def normal_slice(num_wheels: int) -> slice:
@@ -137,21 +207,30 @@ def _friction_step(x, other_force, mass_matrix, dt, params, newton_steps, joint_
     nv = x.shape[0] // 2
     v = np.ascontiguousarray(x[nv:])
     joint_damping = np.zeros(nv)
+    joint_coulomb = np.zeros(nv)
     state = params[FAILED]
     joint_damping[3:] = np.where(state == FREE, params[C_JOINT], np.where(state == LOCKED, LOCKED_DAMPING, 0.0))
-    return implicit_friction_force(jac_long, jac_lat, joint_damping, mass_matrix, mass_matrix @ v + dt * other_force,
-                                   v, dt, params[MU_LONG], params[MU_LAT], params[C_LONG], params[C_LAT],
-                                   params[PER_WHEEL : PER_WHEEL + nw], params[EPS], newton_steps)
+    joint_coulomb[3:] = np.where(state == FREE, params[JOINT_COULOMB], 0.0)
+    jac_head = np.zeros((2, nv))  # the head centre's velocity: the planar joint's x, y rates
+    jac_head[0, 0] = 1.0
+    jac_head[1, 1] = 1.0
+    return _implicit_friction_force(jac_long, jac_lat, joint_damping, mass_matrix, mass_matrix @ v + dt * other_force,
+                                    v, dt, params[MU_LONG], params[MU_LAT], params[C_LONG], params[C_LAT],
+                                    params[PER_WHEEL : PER_WHEEL + nw], params[EPS], newton_steps, params[SHAPE],
+                                    jac_head, params[HEAD_MU] * params[HEAD_NORMAL], joint_coulomb, JOINT_EPS_RAD_S)
 
 
 class FrictionForces(LeafSystem):
     """The model's friction as one generalized force on the planar plant, implicit in time:
-    the wheels' (Eqs. 4-5) and the failed joints' viscous friction c_joint (section 3).
+    the wheels' (Eqs. 4-5), the failed joints' viscous friction c_joint (section 3) and the friction
+    terms of the candidate effects (effects.py).
 
     Inputs `plant_state` [q; v] and `servo_torque` (13, what the servos apply this step); output
-    `generalized_force` for the plant's applied_generalized_force port. The five coefficients, eps,
-    which joints have failed and each wheel's normal force are numeric parameters: a run changes
-    them in its context without rebuilding anything.
+    `generalized_force` for the plant's applied_generalized_force port (friction plus the explicit
+    forces of user effects). The five coefficients, eps,
+    the effect terms, which joints have failed and each wheel's normal force are numeric parameters: a
+    run changes them in its context without rebuilding anything. Gravity (a tilted floor) and a
+    user effect's explicit force (`extra_forces`) enter as known forces of the step.
     """
 
     NEWTON_STEPS = 2
@@ -160,15 +239,21 @@ class FrictionForces(LeafSystem):
         super().__init__()
         self._plant = plant
         self._plant_context = plant.CreateDefaultContext()
+        self._payload_applied = (0.0, 0.0)
         self._geometry = geometry.arrays
         self._dt = plant.time_step()
         nq = plant.num_positions()
         self._num_wheels = len(geometry.wheel_module)
         normal = geometry.module_mass[geometry.wheel_module] * GRAVITY_M_S2
+        scalars = np.zeros(SCALARS)
+        scalars[: EPS + 1] = self.pack(friction, sgn_smoothing_m_s)
+        scalars[SHAPE] = PAPER_SHAPE
+        scalars[HEAD_NORMAL] = geometry.module_mass[0] * GRAVITY_M_S2
         self._param_index = self.DeclareNumericParameter(
-            BasicVector(np.concatenate([self.pack(friction, sgn_smoothing_m_s), np.zeros(NUM_JOINTS), normal,
-                                        np.zeros(self._num_wheels)]))
+            BasicVector(np.concatenate([scalars, np.zeros(NUM_JOINTS), normal, np.zeros(self._num_wheels)]))
         )
+        # Explicit generalized forces of user effects, f(x) -> (nv,); set per run by effects.apply_effects.
+        self.extra_forces = []
         self.DeclareVectorInputPort("plant_state", 2 * nq)
         self.DeclareVectorInputPort("servo_torque", NUM_JOINTS)
         self.DeclareVectorOutputPort("generalized_force", nq, self._calc_generalized_force)
@@ -178,8 +263,12 @@ class FrictionForces(LeafSystem):
         return np.array([friction.c_joint, friction.mu_lat, friction.mu_long, friction.c_lat, friction.c_long,
                          sgn_smoothing_m_s])
 
+    @property
+    def num_wheels(self) -> int:
+        return self._num_wheels
+
     def parameters(self, context) -> np.ndarray:
-        """The mutable parameter vector (layout above: C_JOINT .. EPS, FAILED, normals, toes) in `context`."""
+        """The mutable parameter vector (layout above: C_JOINT .. EPS, effect terms, FAILED, normals, toes)."""
         return context.get_mutable_numeric_parameter(self._param_index).get_mutable_value()
 
     def set_friction(self, context, friction: Friction, sgn_smoothing_m_s: float) -> None:
@@ -187,18 +276,21 @@ class FrictionForces(LeafSystem):
             raise ValueError("the implicit friction needs sgn_smoothing_m_s > 0")
         self.parameters(context)[: EPS + 1] = self.pack(friction, sgn_smoothing_m_s)
 
-    def set_wheel_toe(self, context, toe_rad) -> None:
-        """Yaw every wheel (or each, given W angles) by toe_rad from its SDF direction."""
-        self.parameters(context)[toe_slice(self._num_wheels)] = toe_rad
-
     def _calc_generalized_force(self, context, output):
         x = self.get_input_port(0).Eval(context)
+        params = context.get_numeric_parameter(self._param_index).get_value()
         plant, plant_context = self._plant, self._plant_context
+        payload = (params[PAYLOAD_KG], params[PAYLOAD_MODULE])
+        if payload != self._payload_applied:  # the solve's mass matrix must carry the payload too
+            set_payload(plant, plant_context, int(payload[1]), payload[0])
+            self._payload_applied = payload
         plant.SetPositionsAndVelocities(plant_context, x)
-        other = -plant.CalcBiasTerm(plant_context)
+        other = plant.CalcGravityGeneralizedForces(plant_context) - plant.CalcBiasTerm(plant_context)
         other[3:] += self.get_input_port(1).Eval(context)
+        extra = sum((force(x) for force in self.extra_forces), np.zeros(len(other)))
+        # The plant applies gravity, the bias term and the servo torques itself; the extra forces only
+        # reach it through this output.
         output.SetFromVector(
-            _friction_step(x, other, plant.CalcMassMatrix(plant_context), self._dt,
-                           context.get_numeric_parameter(self._param_index).get_value(), self.NEWTON_STEPS,
-                           *self._geometry)
+            extra + _friction_step(x, other + extra, plant.CalcMassMatrix(plant_context), self._dt, params,
+                                   self.NEWTON_STEPS, *self._geometry)
         )

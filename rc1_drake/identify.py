@@ -378,11 +378,12 @@ def _bounded_step(jac, r, damping, lower, upper):
 
 
 def fit_program(residuals, *, start: Friction, parameters=None, log_step: float = 0.02, max_iterations: int = 10,
-                tolerance: float = 1e-2) -> ProgramResult:
+                tolerance: float = 1e-2, on_iteration=None) -> ProgramResult:
     """Least squares of the standardized residuals (final position, yaw rate, camera path) over the log
     of each free coefficient, within its bounds: Levenberg-Marquardt iterations whose bounded steps are
     Drake MathematicalPrograms solved by SNOPT. The simulation is not differentiable, so the Jacobian
-    comes from forward differences (one residual evaluation per free coefficient per iteration)."""
+    comes from forward differences (one residual evaluation per free coefficient per iteration).
+    `on_iteration(friction, simulations)`, if given, is called after every accepted step."""
     free = [p for p in (parameters or DEFAULT_PARAMETERS) if not p.frozen]
     base = np.array([max(getattr(start, p.name), 1e-3 * (p.upper - p.lower)) for p in free])
     lower = np.array([math.log(max(p.lower, 1e-6) / b) for p, b in zip(free, base, strict=True)])
@@ -414,6 +415,8 @@ def fit_program(residuals, *, start: Friction, parameters=None, log_step: float 
         if step is None:
             break
         u, r, improvement, cost = u + step, r_new, (cost - cost_new) / cost, cost_new
+        if on_iteration is not None:
+            on_iteration(friction_at(u), getattr(residuals, "simulations", 0) - start_sims)
         if improvement < tolerance or np.abs(step).max() < 1e-3:
             break
     return ProgramResult(start=start, friction=friction_at(u), cost_start=cost_start, cost=cost,

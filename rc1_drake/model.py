@@ -92,3 +92,18 @@ def chain_geometry(plant, instance) -> ChainGeometry:
         module_mass=mass,
         module_yaw_inertia=izz,
     )
+
+
+def set_payload(plant, plant_context, module: int, kg: float) -> None:
+    """Give module `module` (1..14; 0: none) an extra point mass `kg` at its centre, the others their SDF
+    inertia. A point mass at the centre of mass adds mass but no rotational inertia about it."""
+    from pydrake.multibody.tree import SpatialInertia
+
+    instance = plant.GetModelInstanceByName("rc1")
+    for k in range(1, NUM_MODULES + 1):
+        body = plant.GetBodyByName(f"module_{k}", instance)
+        base = body.default_spatial_inertia()
+        extra = kg if k == module else 0.0
+        central = base.CalcRotationalInertia()  # about the module's centre, which is its mass centre
+        body.SetSpatialInertiaInBodyFrame(
+            plant_context, SpatialInertia.MakeFromCentralInertia(base.get_mass() + extra, base.get_com(), central))

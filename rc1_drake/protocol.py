@@ -19,6 +19,7 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import EventStatus
 
 from .config import Rc1Error, Scenario
+from .effects import apply_effects, commanded_gait
 from .diagram import RC1Diagram, build_diagram, build_key
 from .gait import serpenoid, serpenoid_parameters
 from .kinematics import ChainGeometry, module_motion, module_yaws
@@ -39,7 +40,7 @@ def rest_state(head_xy, head_yaw: float, q, q_dot, geometry: ChainGeometry) -> n
 
 def initial_state(scenario: Scenario, geometry: ChainGeometry) -> np.ndarray:
     """Plant state [x, y, yaw, q; vx, vy, w, q_dot] at t = 0 (see the module docstring)."""
-    q, q_dot = serpenoid(0.0, scenario.gait)
+    q, q_dot = serpenoid(0.0, commanded_gait(scenario.gait, scenario.effects))
     head_yaw = math.radians(scenario.start.heading_deg) - module_yaws(0.0, q).mean()
     return rest_state([scenario.start.x_m, scenario.start.y_m], head_yaw, q, q_dot, geometry)
 
@@ -54,8 +55,7 @@ def configure_context(built: RC1Diagram, context, scenario: Scenario, initial=No
         scenario.friction,
         scenario.numerics.sgn_smoothing_m_s,
     )
-    built.friction.set_wheel_toe(built.friction.GetMyMutableContextFromRoot(context),
-                                 math.radians(scenario.effects.wheel_toe_deg))
+    apply_effects(built, context, scenario.effects)
     built.failure_switch.reset(context, scenario.servo.torque_limit_Nm)
     if built.gait_bias is not None:
         bias = serpenoid_parameters(scenario.gait)[3]

@@ -14,7 +14,7 @@ from typing import List, Optional
 
 import numpy as np
 
-from .config import Effects, Failure, Friction, Gait, Numerics, Scenario, Start, Stop
+from .config import Failure, Friction, Gait, Numerics, Scenario, Start, Stop
 from .diagram import build_key
 from .measurements import Campaign, Stop as TrialStop, Trial, write_trial
 from .protocol import Session
@@ -58,13 +58,28 @@ class Variation:
 # failure in this model (README).
 PAPER_DESIGN = [Case([], 5), Case([7], 5), Case([13], 5), Case([7], 5, bias_deg=-0.9), Case([2], 1)]
 
+# A standing wave (phase step 0) at 360 deg/s: the wheels slip sideways, so the lateral friction law
+# (mu_lat, c_lat) shows, and a free joint swings fast, so c_joint does.
+STANDING_WAVE = Gait(amplitude_deg=30.0, frequency_deg_s=360.0, phase_step_deg=0.0)
+
+# A design under which all five coefficients are identifiable (benchmarks/identification.py, README):
+# gait frequencies from 70 to 480 deg/s spread the rolling speeds (mu_long against c_long), the
+# standing wave makes the wheels slip (mu_lat against c_lat), failures in it show c_joint.
+IDENTIFICATION_DESIGN = [
+    Case([], 1), Case([], 1, gait=Gait(frequency_deg_s=70.0)), Case([], 1, gait=Gait(amplitude_deg=30.0, frequency_deg_s=280.0)),
+    Case([], 1, gait=Gait(amplitude_deg=20.0, frequency_deg_s=480.0)), Case([], 1, gait=STANDING_WAVE),
+    Case([7], 1), Case([7], 1, gait=STANDING_WAVE), Case([2], 1, gait=STANDING_WAVE),
+]
+DESIGNS = {"paper": PAPER_DESIGN, "identification": IDENTIFICATION_DESIGN}
+
 
 def synthesize_campaign(folder, *, design=PAPER_DESIGN, friction=None, effects=None, noise=None, variation=None,
                         seed=0, camera=True, stop=None, sample_period_s=0.01, numerics=None, truth_file=None,
                         name=None) -> Campaign:
     """Write a campaign to `folder` and, if `truth_file` is given, what made it. Unset arguments take
-    their defaults: the paper's friction, no effect, Noise(), Variation(), Stop()."""
-    friction, effects = friction or Friction(), effects or Effects()
+    their defaults: the paper's friction, no effect, Noise(), Variation(), Stop(). `effects` maps
+    effect parameter keys to values (effects.py)."""
+    friction, effects = friction or Friction(), dict(effects or {})
     noise, variation, stop = noise or Noise(), variation or Variation(), stop or Stop()
     rng = np.random.default_rng(seed)
     numerics = dataclasses.replace(numerics or Numerics(), log_period_s=sample_period_s)
@@ -92,7 +107,7 @@ def synthesize_campaign(folder, *, design=PAPER_DESIGN, friction=None, effects=N
     if truth_file is not None:
         truth = {
             "campaign": str(name or folder.name), "seed": seed,
-            "friction": dataclasses.asdict(friction), "effects": dataclasses.asdict(effects),
+            "friction": dataclasses.asdict(friction), "effects": effects,
             "noise": dataclasses.asdict(noise), "variation": dataclasses.asdict(variation),
             "design": [dataclasses.asdict(c) for c in design],
             "numerics": dataclasses.asdict(numerics),

@@ -8,7 +8,7 @@ import pytest
 
 from rc1_drake.cli import main
 from rc1_drake.compare import compare_campaign, fit_percent, simulator_error
-from rc1_drake.config import Effects, Stop
+from rc1_drake.config import Stop
 from rc1_drake.measurements import load_campaign
 from rc1_drake.synthesize import Case, synthesize_campaign
 
@@ -27,7 +27,7 @@ def clean(tmp_path_factory):
 @pytest.fixture(scope="module")
 def hidden(tmp_path_factory):
     folder = tmp_path_factory.mktemp("hidden") / "campaign"
-    synthesize_campaign(folder, design=DESIGN, stop=SHORT, seed=11, effects=Effects(wheel_toe_deg=3.0))
+    synthesize_campaign(folder, design=DESIGN, stop=SHORT, seed=11, effects={"wheel_toe_deg": 3.0})
     return compare_campaign(load_campaign(folder), workers=2)
 
 

@@ -1,0 +1,277 @@
+"""Candidate physical effects beyond the paper's model: a library that a run, a synthesized truth, a fit
+or a diagnosis adds by name.
+
+A scenario's `effects:` mapping holds parameter values by key (`ground_slope_deg: 3.0`); a missing key
+is 0 (or a setting's default), and every effect at 0 is the paper's model exactly (nested models).
+Each effect is one small class: its parameters (bounds, and whether a fit estimates them or the user
+sets them) and how it changes the model, by editing a ModelSetup (gravity, payload, friction-law
+terms, wheel toe, explicit forces) and, for the commanded gait, the Gait. `register()` adds a user's
+own; README "Missing physics" shows one.
+
+Sign conventions are the README's: world x toward the line, y left, z up; a wheel's +x rolls forward
+(toward the head), +y is its left.
+"""
+
+import dataclasses
+import math
+from typing import Callable, Dict, List, Optional
+
+import numpy as np
+
+from .config import NUM_JOINTS, Gait, JointGait, Rc1Error
+
+GRAVITY_M_S2 = 9.81
+
+
+@dataclasses.dataclass(frozen=True)
+class EffectParameter:
+    key: str  # its key under `effects:`; the unit is in the name
+    lower: float  # physical domain, and the bounds of a fit
+    upper: float
+    fitted: bool = True  # False: a setting the user chooses (which module, a reference speed), never fitted
+    default: float = 0.0  # its value when the scenario leaves it out
+
+
+@dataclasses.dataclass
+class ModelSetup:
+    """What the effects of a run change, gathered before it is written into the Diagram's context."""
+
+    gravity: np.ndarray  # (3,) world, m/s^2
+    payload_module: int = 0  # 1..14, 0: none
+    payload_kg: float = 0.0
+    lateral_asymmetry: float = 0.0
+    longitudinal_asymmetry: float = 0.0
+    stribeck_ratio: float = 0.0
+    stribeck_speed_m_s: float = 0.01
+    head_mu: float = 0.0
+    joint_coulomb_Nm: float = 0.0
+    wheel_toe_rad: float = 0.0
+    extra_forces: List[Callable] = dataclasses.field(default_factory=list)  # f(x) -> (16,) generalized force
+
+
+class Effect:
+    """A named physical effect. Subclasses set `name`, `parameters` (the first is the one `--effect
+    NAME=VALUE` sets), `summary`, and override `configure` and/or `gait`."""
+
+    name: str = ""
+    parameters: tuple = ()
+    summary: str = ""
+    seen_in_replay: bool = True  # False: it acts only on runs driven by the gait command
+
+    def configure(self, setup: ModelSetup, values: Dict[str, float]) -> None:
+        """Change `setup` for parameter `values` (all of this effect's keys present)."""
+
+    def gait(self, gait: Gait, values: Dict[str, float]) -> Gait:
+        """The gait the joints are commanded to follow, for runs driven by the gait."""
+        return gait
+
+    @property
+    def main(self) -> EffectParameter:
+        return self.parameters[0]
+
+    def fitted(self) -> List[EffectParameter]:
+        return [p for p in self.parameters if p.fitted]
+
+
+class GroundSlope(Effect):
+    name = "ground_slope"
+    summary = "a tilted floor: gravity pulls every module downhill, the normal forces fall by cos(slope)"
+    parameters = (EffectParameter("ground_slope_deg", 0.0, 20.0),
+                  EffectParameter("ground_slope_direction_deg", -180.0, 180.0))  # downhill, counter-clockwise from +x
+
+    def configure(self, setup, values):
+        slope, heading = math.radians(values["ground_slope_deg"]), math.radians(values["ground_slope_direction_deg"])
+        setup.gravity = GRAVITY_M_S2 * np.array([math.sin(slope) * math.cos(heading),
+                                                 math.sin(slope) * math.sin(heading), -math.cos(slope)])
+
+
+class LateralFrictionAsymmetry(Effect):
+    name = "lateral_friction_asymmetry"
+    summary = "the lateral Coulomb coefficient is mu_lat (1 + a) sliding left, mu_lat (1 - a) sliding right"
+    parameters = (EffectParameter("lateral_friction_asymmetry", -0.9, 0.9),)
+
+    def configure(self, setup, values):
+        setup.lateral_asymmetry = values["lateral_friction_asymmetry"]
+
+
+class LongitudinalFrictionAsymmetry(Effect):
+    name = "longitudinal_friction_asymmetry"
+    summary = "rolling resistance mu_long (1 + a) rolling forward, mu_long (1 - a) rolling backward"
+    parameters = (EffectParameter("longitudinal_friction_asymmetry", -0.9, 0.9),)
+
+    def configure(self, setup, values):
+        setup.longitudinal_asymmetry = values["longitudinal_friction_asymmetry"]
+
+
+class HeadDrag(Effect):
+    name = "head_drag"
+    summary = "the wheelless head slides on the floor: isotropic Coulomb friction mu m g at its centre"
+    parameters = (EffectParameter("head_drag_mu", 0.0, 2.0),)
+
+    def configure(self, setup, values):
+        setup.head_mu = values["head_drag_mu"]
+
+
+class JointCoulombFriction(Effect):
+    name = "joint_coulomb_friction"
+    summary = "dry friction torque in a failed (free) joint, beside its viscous c_joint"
+    parameters = (EffectParameter("joint_coulomb_Nm", 0.0, 1.0),)
+
+    def configure(self, setup, values):
+        setup.joint_coulomb_Nm = values["joint_coulomb_Nm"]
+
+
+class StribeckFriction(Effect):
+    name = "stribeck_friction"
+    summary = "lateral breakaway friction: mu_lat (1 + r exp(-(v/v_s)^2)) at low slip speed"
+    parameters = (EffectParameter("stribeck_ratio", 0.0, 3.0),
+                  EffectParameter("stribeck_speed_m_s", 1e-3, 0.2, fitted=False, default=0.01))
+
+    def configure(self, setup, values):
+        setup.stribeck_ratio, setup.stribeck_speed_m_s = values["stribeck_ratio"], values["stribeck_speed_m_s"]
+
+
+class WheelToe(Effect):
+    name = "wheel_toe"
+    summary = "every wheel's rolling direction yawed counter-clockwise from its module's axis"
+    parameters = (EffectParameter("wheel_toe_deg", -10.0, 10.0),)
+
+    def configure(self, setup, values):
+        setup.wheel_toe_rad = math.radians(values["wheel_toe_deg"])
+
+
+class ModulePayload(Effect):
+    name = "module_payload"
+    summary = "an extra mass at one module's centre: its inertia, and its wheel's normal force"
+    parameters = (EffectParameter("payload_kg", 0.0, 2.0),
+                  EffectParameter("payload_module", 1, 14, fitted=False, default=7))
+
+    def configure(self, setup, values):
+        module = values["payload_module"]
+        if module != int(module):
+            raise Rc1Error(f"effects.payload_module: must be a module number 1..14, got {module}")
+        setup.payload_module, setup.payload_kg = int(module), values["payload_kg"]
+
+
+class ServoLag(Effect):
+    name = "servo_lag"
+    summary = "a first-order servo response of time constant tau to the gait command"
+    parameters = (EffectParameter("servo_lag_s", 0.0, 0.5),)
+    seen_in_replay = False  # replays drive the joints by their measured angles
+
+    def gait(self, gait, values):
+        """A first-order lag 1/(1 + tau s) of the serpenoid command A sin(omega t - phi) + B is, once its
+        transient (a few tau) has passed, (A / sqrt(1 + (omega tau)^2)) sin(omega t - phi - atan(omega tau)) + B:
+        the lagged command is again a serpenoid (Eqs. 3, 7), per joint."""
+        from .gait import serpenoid_parameters
+
+        tau = values["servo_lag_s"]
+        if tau == 0.0:
+            return gait
+        amp, omega, phase, bias = serpenoid_parameters(gait)
+        gain, delay = 1.0 / np.sqrt(1.0 + (omega * tau) ** 2), np.arctan(omega * tau)
+        joints = [JointGait(joint=j + 1, amplitude_deg=math.degrees(amp[j] * gain[j]),
+                            frequency_deg_s=math.degrees(omega[j]), phase_deg=math.degrees(phase[j] + delay[j]),
+                            bias_deg=math.degrees(bias[j])) for j in range(NUM_JOINTS)]
+        return dataclasses.replace(gait, joints=joints)
+
+
+LIBRARY: Dict[str, Effect] = {}
+
+
+def register(effect: Effect) -> Effect:
+    """Add an effect to the library (a user's own, for instance); its parameter keys must be new."""
+    taken = {p.key for e in LIBRARY.values() for p in e.parameters if e.name != effect.name}
+    for p in effect.parameters:
+        if p.key in taken:
+            raise ValueError(f"effect {effect.name}: parameter key {p.key} is already used")
+    LIBRARY[effect.name] = effect
+    return effect
+
+
+for _effect in (GroundSlope(), LateralFrictionAsymmetry(), LongitudinalFrictionAsymmetry(), HeadDrag(),
+                JointCoulombFriction(), StribeckFriction(), WheelToe(), ModulePayload(), ServoLag()):
+    register(_effect)
+
+
+def parameter_owner(key: str) -> Optional[Effect]:
+    return next((e for e in LIBRARY.values() if any(p.key == key for p in e.parameters)), None)
+
+
+def effect_values(effects: Dict[str, float], effect: Effect) -> Dict[str, float]:
+    return {p.key: float(effects.get(p.key, p.default)) for p in effect.parameters}
+
+
+def active(effects: Dict[str, float]) -> List[Effect]:
+    """The effects whose parameters `effects` sets (in library order)."""
+    return [e for e in LIBRARY.values() if any(p.key in effects for p in e.parameters)]
+
+
+def validate_effects(effects: Dict[str, float], *, where: str) -> None:
+    """Rc1Error naming the first unknown key or out-of-range value."""
+    for key, value in effects.items():
+        owner = parameter_owner(key)
+        if owner is None:
+            known = ", ".join(p.key for e in LIBRARY.values() for p in e.parameters)
+            raise Rc1Error(f"{where}: effects.{key}: unknown effect parameter (known: {known})")
+        (p,) = [p for p in owner.parameters if p.key == key]
+        if value is None or not math.isfinite(value) or not p.lower <= value <= p.upper:
+            raise Rc1Error(f"{where}: effects.{key}: must be a number in [{p.lower:g}, {p.upper:g}], got {value}")
+
+
+def parse_effect(text: str) -> tuple:
+    """`NAME=VALUE` (an effect's main parameter) or `KEY=VALUE` (any parameter) -> (key, value)."""
+    name, sep, value = text.partition("=")
+    effect = LIBRARY.get(name)
+    key = effect.main.key if effect is not None else name
+    if parameter_owner(key) is None:
+        raise ValueError(f"unknown effect '{name}' (known: {', '.join(LIBRARY)}, or a parameter key)")
+    if not sep:
+        raise ValueError(f"effect '{name}' needs a value: {name}=VALUE")
+    try:
+        return key, float(value)
+    except ValueError:
+        raise ValueError(f"effect '{name}': '{value}' is not a number") from None
+
+
+def commanded_gait(gait: Gait, effects: Dict[str, float]) -> Gait:
+    """The gait as the joints receive it, after the effects that act on the command (servo_lag)."""
+    for effect in active(effects):
+        gait = effect.gait(gait, effect_values(effects, effect))
+    return gait
+
+
+def model_setup(effects: Dict[str, float]) -> ModelSetup:
+    setup = ModelSetup(gravity=np.array([0.0, 0.0, -GRAVITY_M_S2]))
+    for effect in active(effects):
+        effect.configure(setup, effect_values(effects, effect))
+    return setup
+
+
+def apply_effects(built, context, effects: Dict[str, float]) -> ModelSetup:
+    """Write the effects into `context` (after SetDefaultContext): gravity, payload, friction-law terms,
+    normal forces (each module's weight on the floor, m g cos(slope)), wheel toe, explicit forces.
+    Every run calls it, so nothing of a previous run's effects stays."""
+    from . import friction as fr
+    from .model import set_payload
+
+    setup = model_setup(effects)
+    plant, system = built.plant, built.friction
+    plant.mutable_gravity_field().set_gravity_vector(setup.gravity)  # the plant's, shared by its contexts
+    set_payload(plant, plant.GetMyMutableContextFromRoot(context), setup.payload_module, setup.payload_kg)
+    params = system.parameters(system.GetMyMutableContextFromRoot(context))
+    params[fr.SHAPE] = [setup.lateral_asymmetry, setup.longitudinal_asymmetry, setup.stribeck_ratio,
+                        setup.stribeck_speed_m_s]
+    params[fr.HEAD_MU] = setup.head_mu
+    params[fr.JOINT_COULOMB] = setup.joint_coulomb_Nm
+    params[fr.PAYLOAD_KG], params[fr.PAYLOAD_MODULE] = setup.payload_kg, setup.payload_module
+    geometry = built.rc1.geometry
+    weight = geometry.module_mass.copy()
+    if setup.payload_module:
+        weight[setup.payload_module - 1] += setup.payload_kg
+    weight *= -setup.gravity[2]
+    params[fr.HEAD_NORMAL] = weight[0]
+    params[fr.normal_slice(system.num_wheels)] = weight[geometry.wheel_module]
+    params[fr.toe_slice(system.num_wheels)] = setup.wheel_toe_rad
+    system.extra_forces = list(setup.extra_forces)
+    return setup
