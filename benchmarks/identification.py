@@ -4,39 +4,41 @@ costs in simulations to get there.
     python benchmarks/identification.py [--time-limit-s 3] [--seed 8] [--workers 2] [--avs-iterations 10]
                                         [--only design|recovery|cost]
 
-1. design: for each design (the paper's cases; + other gait speeds and a standing wave; + failures in
-   the standing wave; + a fast gait = synthesize.IDENTIFICATION_DESIGN) it synthesizes a campaign (the
-   paper's friction, default noise) and prints each coefficient's relative standard error at the truth
-   (identify.uncertainty: 1 + 5 residual evaluations) and whether it is identifiable (< 30%).
+1. design: for each design (the paper's cases; + gaits at 70 and 210 deg/s; + failures at two speeds =
+   synthesize.IDENTIFICATION_DESIGN; + a joint-2 failure) it synthesizes a campaign (the paper's
+   friction, default noise) and prints each coefficient's relative standard error at the truth
+   (identify.uncertainty: 1 + 5 residual evaluations), whether it is identifiable (< 30%), and the
+   worst trial's RMS standardized residual at the truth: ~0.6 is sensor noise, more means the replay
+   cannot reproduce that trial even at the true coefficients, and it will bias a fit.
 2. recovery: the program fit from the paper's manual values with all five free on the identification
-   design: value, error against the truth, standard error, simulations, wall time.
+   design, screened (identify.screen: coefficients not identifiable at the start are held there, not
+   fitted), and unscreened: value, error against the truth, standard error, simulations, wall time.
 3. cost: AVS from the manual values on the same campaign: its Eq. 6 error and simulations, and the
    simulations the program fit needed to reach that error (its Eq. 6 error is scored after each
    iteration, outside the count).
 """
 
 import argparse
-import dataclasses
 import platform
 import tempfile
 import time
 from pathlib import Path
 
+import numpy as np
+
 from rc1_drake.config import FRICTION_NAMES, Friction, Gait, Stop
 from rc1_drake.executor import make_executor
-from rc1_drake.identify import PAPER_MANUAL, CampaignResiduals, Eq6Objective, avs, fit_program, uncertainty
+from rc1_drake.identify import (PAPER_MANUAL, CampaignResiduals, Eq6Objective, _replay_residual, avs, fit_program,
+                                screen, uncertainty)
 from rc1_drake.measurements import load_campaign
-from rc1_drake.synthesize import IDENTIFICATION_DESIGN, PAPER_DESIGN, STANDING_WAVE, Case, synthesize_campaign
+from rc1_drake.synthesize import IDENTIFICATION_DESIGN, Case, synthesize_campaign
 
 DESIGNS = {
-    "paper cases (1 trial each)": [dataclasses.replace(c, trials=1) for c in PAPER_DESIGN[:2]],
-    "+ 70 deg/s, standing wave": [Case([], 1), Case([7], 1), Case([], 1, gait=Gait(frequency_deg_s=70.0)),
-                                  Case([], 1, gait=STANDING_WAVE)],
-    "+ failures in the standing wave": [Case([], 1), Case([], 1, gait=Gait(frequency_deg_s=70.0)),
-                                        Case([], 1, gait=Gait(amplitude_deg=30.0, frequency_deg_s=280.0)),
-                                        Case([], 1, gait=STANDING_WAVE), Case([7], 1),
-                                        Case([7], 1, gait=STANDING_WAVE), Case([2], 1, gait=STANDING_WAVE)],
-    "+ 480 deg/s (IDENTIFICATION_DESIGN)": IDENTIFICATION_DESIGN,
+    "no failure + joint 7, 140 deg/s": [Case([], 1), Case([7], 1)],
+    "+ no failure at 70 and 210 deg/s": [Case([], 1), Case([7], 1), Case([], 1, gait=Gait(frequency_deg_s=70.0)),
+                                         Case([], 1, gait=Gait(frequency_deg_s=210.0))],
+    "+ joint 7 at 210, joint 13 (IDENTIFICATION)": IDENTIFICATION_DESIGN,
+    "+ joint 2 (circling)": IDENTIFICATION_DESIGN + [Case([2], 1)],
 }
 
 
@@ -49,15 +51,21 @@ def campaign(folder, design, args):
 def design_study(args, executor, workdir):
     print(f"\n1. relative standard error at the truth, % ({args.time_limit_s:g} s trials, seed {args.seed}); "
           "* = identifiable (< 30%)")
-    print(f"{'design':40}" + "".join(f"{n:>10}" for n in FRICTION_NAMES) + f"{'sims':>6}{'wall s':>8}")
+    print(f"{'design':45}" + "".join(f"{n:>10}" for n in FRICTION_NAMES) + f"{'replay rms':>11}{'sims':>6}{'wall s':>8}")
     for k, (name, design) in enumerate(DESIGNS.items()):
         start = time.perf_counter()
         trials = campaign(workdir / f"design{k}", design, args).trials
         spread = uncertainty(CampaignResiduals(trials, executor=executor), Friction())
         cells = "".join(f"{(100 * se / v if se != float('inf') else float('inf')):>9.0f}{'*' if ok else ' '}"
                         for v, se, ok in zip(spread.values, spread.standard_errors, spread.identifiable, strict=True))
-        print(f"{name:40}{cells}{spread.simulations:>6}"
+        worst = max(float(np.sqrt(np.mean(_replay_residual(t, Friction()) ** 2))) for t in trials)
+        print(f"{name:45}{cells}{worst:>11.2f}{spread.simulations:>6}"
               f"{time.perf_counter() - start:>8.0f}", flush=True)
+        # Standard errors fall as 1/sqrt(data): trial-seconds of this design that a 10% error would need.
+        seconds = len(trials) * args.time_limit_s
+        need = "".join(f"{seconds * (100 * se / v / 10) ** 2 if se != float('inf') else float('inf'):>10.3g}"
+                       for v, se in zip(spread.values, spread.standard_errors, strict=True))
+        print(f"{'  trial-seconds for a 10% standard error':45}{need}", flush=True)
 
 
 def recovery_and_cost(args, executor, workdir, only):
@@ -66,22 +74,28 @@ def recovery_and_cost(args, executor, workdir, only):
     scores = {}
     eq6 = Eq6Objective(trials, executor=executor)  # scoring only: not counted against the fits
     if only in (None, "recovery", "cost"):
-        residuals = CampaignResiduals(trials, executor=executor)
-        start = time.perf_counter()
-        history = []
-        fit = fit_program(residuals, start=PAPER_MANUAL, max_iterations=args.program_iterations,
-                          on_iteration=lambda f, sims: history.append((sims, eq6(f))))
-        wall = time.perf_counter() - start
-        spread = uncertainty(residuals, fit.friction)
-        print(f"\n2. program fit from the manual values, all five free, {len(trials)} trials "
-              f"({fit.iterations} iterations, {fit.simulations} trial simulations, {wall:.0f} s wall)")
-        print(f"{'coefficient':12}{'truth':>8}{'fit':>9}{'error %':>9}{'std err %':>11}")
-        for name, value, se in zip(spread.names, spread.values, spread.standard_errors, strict=True):
-            t = getattr(truth, name)
-            print(f"{name:12}{t:>8.4g}{value:>9.4g}{100 * (value - t) / t:>9.1f}{100 * se / value:>11.1f}")
-        scores["program"] = history
-        print("mean Eq. 6 error after each iteration (trial simulations so far): "
-              + ", ".join(f"{e:.2f}% ({s})" for s, e in history))
+        for screened in (True, False):
+            residuals = CampaignResiduals(trials, executor=executor)
+            start = time.perf_counter()
+            history = []
+            fitted = screen(residuals, PAPER_MANUAL)[0] if screened else None
+            fit = fit_program(residuals, start=PAPER_MANUAL, parameters=fitted, max_iterations=args.program_iterations,
+                              on_iteration=lambda f, sims, h=history: h.append((sims, eq6(f))))
+            wall = time.perf_counter() - start
+            spread = uncertainty(residuals, fit.friction)
+            held = [p.name for p in fitted if p.frozen] if screened else []
+            print(f"\n2. program fit from the manual values, {'screened' if screened else 'all five fitted'}, "
+                  f"{len(trials)} trials ({fit.iterations} iterations, {residuals.simulations} trial simulations "
+                  f"with the screening, {wall:.0f} s wall)")
+            print(f"{'coefficient':12}{'truth':>8}{'result':>9}{'error %':>9}{'std err %':>11}  fitted")
+            for name, value, se, ok in zip(spread.names, spread.values, spread.standard_errors, spread.identifiable,
+                                           strict=True):
+                t = getattr(truth, name)
+                print(f"{name:12}{t:>8.4g}{value:>9.4g}{100 * (value - t) / t:>9.1f}{100 * se / value:>11.1f}  "
+                      f"{'held at start' if name in held else 'yes'}{'' if ok else ' (not identifiable at the result)'}")
+            scores["screened" if screened else "program"] = history
+            print("mean Eq. 6 error after each iteration (trial simulations so far): "
+                  + ", ".join(f"{e:.2f}% ({s})" for s, e in history))
     if only in (None, "cost"):
         start = time.perf_counter()
         objective = Eq6Objective(trials, executor=executor)
@@ -90,10 +104,11 @@ def recovery_and_cost(args, executor, workdir, only):
         print(f"\n3. AVS from the manual values, {args.avs_iterations} iterations: Eq. 6 error "
               f"{result.start_error:.2f}% -> {result.error:.2f}%, {result.simulations} trial simulations, {wall:.0f} s")
         print(result.table())
-        reached = next((s for s, e in scores.get("program", []) if e <= result.error), None)
-        print(f"program fit reached AVS's error after "
-              f"{'(never, within its iterations)' if reached is None else f'{reached} trial simulations'}; "
-              f"truth's error {eq6(truth):.2f}%")
+        for name, history in scores.items():
+            reached = next((s for s, e in history if e <= result.error), None)
+            print(f"{name} fit reached AVS's error after "
+                  f"{'(never, within its iterations)' if reached is None else f'{reached} trial simulations'}")
+        print(f"the truth's own mean Eq. 6 error on these trials: {eq6(truth):.2f}%")
 
 
 def main():

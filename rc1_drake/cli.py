@@ -10,8 +10,8 @@ import sys
 import time
 from pathlib import Path
 
-from .config import (DEFAULT_SCENARIOS, FAILURE_MODES, FRICTION_NAMES, Failure, Friction, Scenario,
-                     Rc1Error, Stop, load_scenario, validate)
+from .config import (DEFAULT_SCENARIOS, FAILURE_MODES, FRICTION_NAMES, Failure, Friction, ModelFile, Rc1Error,
+                     Scenario, Stop, load_model_file, load_scenario, validate)
 
 
 class _Parser(argparse.ArgumentParser):
@@ -61,7 +61,8 @@ def make_parser() -> argparse.ArgumentParser:
     run.add_argument("--phase-step-deg", type=_float, metavar="P", help="phase step between joints, degrees")
     run.add_argument("--friction", type=_friction_override, action="append", default=[], metavar="NAME=VALUE",
                      help=f"set a friction coefficient ({', '.join(FRICTION_NAMES)}); repeatable")
-    run.add_argument("--friction-file", type=Path, metavar="PATH", help="friction YAML, e.g. from rc1 identify --out")
+    run.add_argument("--model-file", "--friction-file", dest="model_file", type=Path, metavar="PATH",
+                     help="a model file (friction and effects), e.g. from rc1 identify --out or rc1 diagnose")
     run.add_argument("--effect", type=_effect, action="append", default=[], metavar="NAME=VALUE",
                      help="add a physical effect (EFFECT=VALUE or PARAMETER=VALUE, see rc1 effects); repeatable")
     run.add_argument("--time-limit-s", type=_float, metavar="T", help="stop after T seconds at the latest")
@@ -90,7 +91,10 @@ def make_parser() -> argparse.ArgumentParser:
     cmp.add_argument("campaign", type=Path, help="campaign folder (data/README.md)")
     cmp.add_argument("--friction", type=_friction_override, action="append", default=[], metavar="NAME=VALUE",
                      help="friction coefficient for the model (repeatable)")
-    cmp.add_argument("--friction-file", type=Path, metavar="PATH", help="friction YAML, e.g. from rc1 identify --out")
+    cmp.add_argument("--model-file", "--friction-file", dest="model_file", type=Path, metavar="PATH",
+                     help="a model file (friction and effects), e.g. from rc1 identify --out or rc1 diagnose")
+    cmp.add_argument("--effect", type=_effect, action="append", default=[], metavar="NAME=VALUE",
+                     help="add a physical effect to the model (see rc1 effects); repeatable")
     cmp.add_argument("--json", type=Path, metavar="PATH", help="write every per-trial and per-case number")
     cmp.add_argument("--plots", type=Path, metavar="DIR", help="write figures in the paper's styles")
     cmp.add_argument("--workers", type=_positive_int, metavar="N", help="processes (default: every core)")
@@ -106,6 +110,7 @@ def make_parser() -> argparse.ArgumentParser:
     swp.add_argument("--double", action="store_true", help="every pair of the joints instead of one at a time")
     swp.add_argument("--no-nominal", action="store_true", help="leave out the no-failure case")
     swp.add_argument("--friction", type=_friction_override, action="append", default=[], metavar="NAME=VALUE")
+    swp.add_argument("--model-file", type=Path, metavar="PATH", help="a model file (friction and effects), e.g. from rc1 identify --out or rc1 diagnose")
     swp.add_argument("--friction-spread", type=_float, default=0.0, metavar="F",
                      help="draw each friction coefficient within +-F (a fraction) of its value per run")
     swp.add_argument("--bias-deg", type=_float, default=0.0, metavar="B", help="bias on every joint, degrees")
@@ -126,13 +131,15 @@ def make_parser() -> argparse.ArgumentParser:
                      help="comma-separated held-out trial ids to score the result on (default: the trials not fitted)")
     idn.add_argument("--iterations", type=_positive_int, default=10, metavar="N",
                      help="AVS iterations, or the program fit's at most (default 10)")
-    idn.add_argument("--start", type=Path, metavar="FRICTION.yaml",
-                     help="starting coefficients (default: the paper's manual values); frozen ones stay at them")
+    idn.add_argument("--start", "--model-file", dest="start", type=Path, metavar="MODEL.yaml",
+                     help="a model file: starting coefficients (default: the paper's manual values; frozen ones "
+                          "stay at them) and effects, which stay fixed")
     idn.add_argument("--freeze", action="append", default=[], choices=FRICTION_NAMES, metavar="NAME",
                      help="keep a coefficient at its start value (repeatable)")
     idn.add_argument("--json", type=Path, metavar="PATH")
     idn.add_argument("--plots", type=Path, metavar="DIR")
-    idn.add_argument("--out", type=Path, metavar="FRICTION.yaml", help="write the identified coefficients")
+    idn.add_argument("--out", type=Path, metavar="MODEL.yaml",
+                     help="write a model file: the identified coefficients and the (fixed) effects")
     idn.add_argument("--workers", type=_positive_int, metavar="N")
     idn.add_argument("--scheduler", metavar="ADDRESS")
 
@@ -190,16 +197,15 @@ def scenario_from_args(args):
         gait = dataclasses.replace(gait, bias_deg=args.bias_deg)
     if args.phase_step_deg is not None:
         gait = dataclasses.replace(gait, phase_step_deg=args.phase_step_deg)
-    base = scenario.friction
-    if args.friction_file:
-        from .identify import load_friction_file
-
-        base = load_friction_file(args.friction_file)
+    base, effects = scenario.friction, dict(scenario.effects)
+    if args.model_file:
+        model = load_model_file(args.model_file)
+        base, effects = model.friction, {**effects, **model.effects}
     friction = dataclasses.replace(base, **dict(args.friction))
     stop = scenario.stop
     if args.time_limit_s is not None:
         stop = dataclasses.replace(stop, time_limit_s=args.time_limit_s)
-    effects = {**scenario.effects, **dict(args.effect)}
+    effects = {**effects, **dict(args.effect)}
     scenario = dataclasses.replace(scenario, failures=failures, gait=gait, friction=friction, stop=stop,
                                    effects=effects)
     return validate(scenario, where="command line")
@@ -254,17 +260,17 @@ def cmd_synthesize(args) -> int:
     return 0
 
 
-def validate_friction(overrides: dict, friction_file=None) -> Friction:
-    from .config import Scenario
+def validate_friction(overrides: dict, model_file=None) -> Friction:
+    return model_from_args(overrides, model_file)[0]
 
-    base = Friction()
-    if friction_file is not None:
-        from .identify import load_friction_file
 
-        base = load_friction_file(friction_file)
-    friction = dataclasses.replace(base, **overrides)
+def model_from_args(overrides: dict, model_file=None) -> tuple:
+    """(friction, effects): the model file's (default: the paper's identified friction, no effect) with
+    --friction overrides, validated."""
+    model = ModelFile() if model_file is None else load_model_file(model_file)
+    friction = dataclasses.replace(model.friction, **overrides)
     validate(Scenario(friction=friction), where="command line")
-    return friction
+    return friction, model.effects
 
 
 def cmd_compare(args) -> int:
@@ -272,12 +278,14 @@ def cmd_compare(args) -> int:
     from .measurements import load_campaign
 
     campaign = load_campaign(args.campaign)
-    friction = validate_friction(dict(args.friction), args.friction_file)
+    friction, effects = model_from_args(dict(args.friction), args.model_file)
+    effects = {**effects, **dict(args.effect)}
+    validate(Scenario(effects=effects), where="command line")
 
     def progress(done, total, trial_id):
         print(f"\r  replayed {done}/{total} trials ({trial_id})", end="", file=sys.stderr, flush=True)
 
-    report = compare_campaign(campaign, friction, workers=args.workers, progress=progress)
+    report = compare_campaign(campaign, friction, effects=effects or None, workers=args.workers, progress=progress)
     print(file=sys.stderr)
     print(f"Simulator error (paper Eq. 6) per trial, {campaign.path}:")
     print(report.table())
@@ -289,8 +297,16 @@ def cmd_compare(args) -> int:
         if r.circle_diameter_model_m is not None or r.circle_diameter_measured_m is not None:
             print(f"{'':<16}revolutions model {r.revolutions_model:.2f} / measured {r.revolutions_measured:.2f}; "
                   f"circle diameter model {r.circle_diameter_model_m} / measured {r.circle_diameter_measured_m}")
+    from .residuals import where_it_fails
+
+    where = where_it_fails(report, campaign)
+    print()
+    print("Where the model fails (worst first; path error from the camera; LB p: whiteness of the yaw-rate "
+          "residual, small = structure left; the feature it correlates with most):")
+    print(where.table())
     if args.json:
-        _write_atomically(args.json, lambda p: p.write_text(json.dumps(report.to_json(), indent=2) + "\n"))
+        record = {**report.to_json(), "where_it_fails": where.to_json()}
+        _write_atomically(args.json, lambda p: p.write_text(json.dumps(record, indent=2) + "\n"))
     if args.plots:
         write_compare_plots(report, campaign, args.plots)
     return 0
@@ -333,8 +349,8 @@ def cmd_sweep(args) -> int:
     else:
         sets = single_failure_sets(args.joints, mode=args.mode, time_s=args.fail_time_s,
                                    include_none=not args.no_nominal)
-    friction = validate_friction(dict(args.friction))
-    jobs = make_jobs(failure_sets=sets, trials=args.trials, seed=args.seed, friction=friction,
+    friction, effects = model_from_args(dict(args.friction), args.model_file)
+    jobs = make_jobs(failure_sets=sets, trials=args.trials, seed=args.seed, friction=friction, effects=effects,
                      friction_spread=args.friction_spread, bias_deg=args.bias_deg,
                      stop=Stop(time_limit_s=args.time_limit_s))
     for job in jobs[:1] + jobs[-1:]:
@@ -363,7 +379,7 @@ def cmd_identify(args) -> int:
     import matplotlib.pyplot as plt
 
     from .identify import (DEFAULT_PARAMETERS, PAPER_MANUAL, avs_figure, friction_to_yaml, held_out_errors,
-                           identify_avs, identify_equation_error, identify_program, load_friction_file, seeded_start,
+                           identify_avs, identify_equation_error, identify_program, seeded_start,
                            split_trials)
     from .measurements import load_campaign
 
@@ -374,7 +390,8 @@ def cmd_identify(args) -> int:
     trials = ids(args.trials)
     estimation, validation = split_trials(campaign, trials=trials, validation=ids(args.validation))
     parameters = [dataclasses.replace(p, frozen=p.name in args.freeze) for p in DEFAULT_PARAMETERS]
-    start_friction = load_friction_file(args.start) if args.start else PAPER_MANUAL
+    start_model = load_model_file(args.start) if args.start else ModelFile(friction=PAPER_MANUAL)
+    start_friction, effects = start_model.friction, start_model.effects or None  # the effects stay fixed
 
     def progress(done, total, name, error):
         print(f"  iteration {done}/{total}: {name}, mean Eq. 6 error {error:.2f}%", file=sys.stderr, flush=True)
@@ -384,11 +401,11 @@ def cmd_identify(args) -> int:
     if args.method == "avs":
         result, spread = identify_avs(campaign, trials=trials, iterations=args.iterations, workers=args.workers,
                                       scheduler=args.scheduler, parameters=parameters, progress=progress,
-                                      start=start_friction)
+                                      start=start_friction, effects=effects)
         print("Friction identification by AVS (paper Table 1; * = the coefficient each iteration varied):")
         print(result.table())
     elif args.method == "program":
-        if not args.start:
+        if not args.start and effects is None:
             start_friction, seed = seeded_start(campaign, trials=trials, start=start_friction, parameters=parameters)
             if seed is not None:
                 used = [n for n, ok in zip(seed.names, seed.identifiable, strict=True) if ok]
@@ -396,11 +413,16 @@ def cmd_identify(args) -> int:
                       f"({seed.wall_time_s:.0f} s, no simulation); the rest from the paper's manual values")
                 record["equation_error_start"] = seed.to_json()
         result, spread = identify_program(campaign, trials=trials, workers=args.workers, scheduler=args.scheduler,
-                                          parameters=parameters, max_iterations=args.iterations, start=start_friction)
+                                          parameters=parameters, max_iterations=args.iterations, start=start_friction,
+                                          effects=effects)
         print(f"Friction identification by least squares ({result.iterations} iterations, cost "
               f"{result.cost_start:.1f} -> {result.cost:.1f}):")
+        if result.held:
+            print(f"held at their start values, not fitted (not identifiable from these trials at the start): "
+                  f"{', '.join(result.held)}")
     else:
-        result = identify_equation_error(campaign, trials=trials, start=start_friction, parameters=parameters)
+        result = identify_equation_error(campaign, trials=trials, start=start_friction, parameters=parameters,
+                                         effects=effects)
         print(f"Friction identification by equation error (inverse dynamics, {result.wall_time_s:.0f} s, no simulation):")
         print(result.table())
         warnings = result.warnings()
@@ -410,10 +432,13 @@ def cmd_identify(args) -> int:
         print(f"Uncertainty at the result (residual Jacobian; standardized residual RMS {spread.residual_rms:.2f}):")
         print(spread.table())
         warnings = spread.warnings()
+        if args.method == "program" and result.held:
+            warnings.append(f"held at the start values (not identifiable at the start): {', '.join(result.held)}")
     for warning in warnings:
         print(f"warning: {warning}")
     fit_wall = time.perf_counter() - start
-    held = held_out_errors(estimation, validation, result.friction, workers=args.workers, scheduler=args.scheduler)
+    held = held_out_errors(estimation, validation, result.friction, workers=args.workers, scheduler=args.scheduler,
+                           effects=effects)
     print(held.line())
     print(f"fit: {fit_simulations} simulations, {fit_wall:.0f} s; errors: {held.simulations} more simulations")
     if args.json:
@@ -423,7 +448,7 @@ def cmd_identify(args) -> int:
                        "held_out": dataclasses.asdict(held)})
         _write_atomically(args.json, lambda p: p.write_text(json.dumps(record, indent=2, default=float) + "\n"))
     if args.out:
-        _write_atomically(args.out, lambda p: p.write_text(friction_to_yaml(result.friction)))
+        _write_atomically(args.out, lambda p: p.write_text(friction_to_yaml(result.friction, effects)))
     if args.plots and args.method == "avs":
         fig = avs_figure(result)
         _write_atomically(args.plots / "avs_iterations.png", lambda p: fig.savefig(p, format="png", dpi=110))

@@ -164,6 +164,46 @@ def load_scenario(name: str, *, filename=DEFAULT_SCENARIOS) -> Scenario:
     return scenario
 
 
+@dataclasses.dataclass
+class ModelFile:
+    """What a fit or a diagnosis found: friction coefficients and physical effects (effects.py); read by
+    `--model-file` of run, compare, sweep and identify. A file holding only the five friction
+    coefficients at the top level (the older friction file) is read too."""
+
+    friction: Friction = dataclasses.field(default_factory=Friction)
+    effects: Dict[str, float] = dataclasses.field(default_factory=dict)
+
+
+def load_model_file(path) -> ModelFile:
+    """The model file at `path`, validated; Rc1Error names the file and the problem."""
+    import yaml
+
+    path = Path(path)
+    if not path.is_file():
+        raise Rc1Error(f"{path}: no such model file")
+    try:
+        top = yaml.safe_load(path.read_text()) or {}
+    except yaml.YAMLError as e:
+        raise Rc1Error(f"{path}: not valid YAML: {_one_line(e)}") from None
+    flat = isinstance(top, dict) and bool(top) and set(top) <= set(FRICTION_NAMES)
+    try:
+        model = (ModelFile(friction=yaml_load_typed(schema=Friction, filename=str(path))) if flat
+                 else yaml_load_typed(schema=ModelFile, filename=str(path)))
+    except Exception as e:  # noqa: BLE001 - any parse failure is a malformed file, reported in one line
+        raise Rc1Error(f"{path}: {_one_line(e) or type(e).__name__}") from None
+    validate(Scenario(friction=model.friction, effects=model.effects), where=str(path))
+    return model
+
+
+def model_to_yaml(friction: Friction, effects: Optional[Dict[str, float]] = None, *, comment: str = "") -> str:
+    lines = [f"# {comment or 'Model file'}: friction (rc1_drake.config.Friction) and effects (rc1 effects);",
+             "# read with --model-file.", "friction:"]
+    lines += [f"  {name}: {getattr(friction, name):.6g}" for name in FRICTION_NAMES]
+    lines += ["effects:" + ("" if effects else " {}")]
+    lines += [f"  {key}: {value:.6g}" for key, value in (effects or {}).items()]
+    return "\n".join(lines) + "\n"
+
+
 def list_scenarios(filename=DEFAULT_SCENARIOS) -> List[str]:
     import yaml  # Drake depends on PyYAML; only the top-level keys are read here
 

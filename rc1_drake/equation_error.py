@@ -60,7 +60,10 @@ BLOCK_S = 1.0  # residual clusters for the sandwich covariance (longer than the 
 YAW_ROW_M = 0.5  # the yaw row (N m) is divided by this length to weigh like the force rows (N)
 GATE_EPS = 5.0  # a slip below GATE_EPS * eps is in the smoothed sign's linear range: not attributable
 GATE_SIGMAS = 3.0  # ... or below this many standard deviations of its noise
-SLIP_GAIT = "a standing wave (phase_step_deg 0) at 360 deg/s"  # makes the wheels slip sideways (measured)
+# Makes the model's wheels slip sideways (measured), but needs 188 deg/s of joint speed and more torque than
+# RC1's servos give (140 deg/s, 1.19 N m): the robot itself cannot run it.
+SLIP_GAIT = ("a standing wave (phase_step_deg 0) at 360 deg/s, beyond RC1's servos (188 of 140 deg/s); "
+             "within them, fit the friction by simulation (--method program)")
 
 
 @dataclasses.dataclass

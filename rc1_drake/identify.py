@@ -23,10 +23,37 @@ PAPER_MANUAL = Friction(c_joint=0.045, mu_lat=1.5, mu_long=0.1, c_lat=2.0, c_lon
 
 @dataclasses.dataclass
 class Parameter:
-    name: str  # a Friction field
+    name: str  # a Friction field (fitted in log scale), or an effect parameter key (effects.py; linear scale)
     lower: float
     upper: float
     frozen: bool = False
+
+    @property
+    def is_friction(self) -> bool:
+        return self.name in FRICTION_NAMES
+
+
+def effect_parameters(name: str) -> List[Parameter]:
+    """The fitted parameters of effect `name`, with its bounds."""
+    from .effects import LIBRARY
+
+    return [Parameter(p.key, p.lower, p.upper) for p in LIBRARY[name].fitted()]
+
+
+def parameter_value(name: str, friction: Friction, effects=None) -> float:
+    """A friction coefficient's, or an effect parameter's value (its default where `effects` leaves it out)."""
+    if name in FRICTION_NAMES:
+        return getattr(friction, name)
+    from .effects import parameter_owner
+
+    (p,) = [p for p in parameter_owner(name).parameters if p.key == name]
+    return float((effects or {}).get(name, p.default))
+
+
+def with_values(friction: Friction, effects, values: Dict[str, float]) -> tuple:
+    """(friction, effects) with `values` (friction coefficients and effect parameters by name) set."""
+    return (dataclasses.replace(friction, **{k: v for k, v in values.items() if k in FRICTION_NAMES}),
+            {**(effects or {}), **{k: v for k, v in values.items() if k not in FRICTION_NAMES}})
 
 
 DEFAULT_PARAMETERS = [
@@ -75,15 +102,16 @@ class Eq6Objective:
         self.simulations = 0
         self._cache: Dict[tuple, float] = {}
 
-    def per_trial(self, friction: Friction) -> List[float]:
-        errors = _map_trials(_replay_error, self.trials, friction, self.effects, self.executor)
+    def per_trial(self, friction: Friction, effects=None) -> List[float]:
+        errors = _map_trials(_replay_error, self.trials, friction, self.effects if effects is None else effects,
+                             self.executor)
         self.simulations += len(self.trials)
         return errors
 
-    def __call__(self, friction: Friction) -> float:
-        key = dataclasses.astuple(friction)
+    def __call__(self, friction: Friction, effects=None) -> float:
+        key = dataclasses.astuple(friction) + tuple(sorted((effects or {}).items()))
         if key not in self._cache:
-            self._cache[key] = float(np.mean(self.per_trial(friction)))
+            self._cache[key] = float(np.mean(self.per_trial(friction, effects)))
         return self._cache[key]
 
 
@@ -180,36 +208,29 @@ def choose_trials(campaign, trial_ids=None) -> list:
 
 
 def identify_avs(campaign, *, trials=None, iterations=10, workers=None, scheduler=None, start=PAPER_MANUAL,
-                 parameters=None, progress=None):
-    """AVS on the chosen trials, then the uncertainty of its result: (AvsResult, Uncertainty)."""
+                 parameters=None, progress=None, effects=None):
+    """AVS on the chosen trials (the model with `effects`, held fixed), then the uncertainty of its
+    result: (AvsResult, Uncertainty)."""
     chosen = choose_trials(campaign, trials)
     with make_executor(workers=workers or min(os.cpu_count() or 1, len(chosen)), scheduler=scheduler) as executor:
-        objective = Eq6Objective(chosen, executor=executor)
+        objective = Eq6Objective(chosen, executor=executor, effects=effects)
         result = avs(objective, start=start, iterations=iterations, parameters=parameters, progress=progress)
-        spread = uncertainty(CampaignResiduals(chosen, executor=executor), result.friction, parameters=parameters)
+        spread = uncertainty(CampaignResiduals(chosen, executor=executor, effects=effects), result.friction,
+                             parameters=parameters)
     return result, spread
 
 
-def friction_to_yaml(friction: Friction) -> str:
-    lines = ["# Friction coefficients (rc1_drake.config.Friction); read with --friction-file."]
-    lines += [f"{name}: {getattr(friction, name):.6g}" for name in FRICTION_NAMES]
-    return "\n".join(lines) + "\n"
+def friction_to_yaml(friction: Friction, effects=None) -> str:
+    from .config import model_to_yaml
+
+    return model_to_yaml(friction, effects, comment="Identified by rc1 identify")
 
 
 def load_friction_file(path) -> Friction:
-    """A friction YAML (as written by `rc1 identify --out`), validated; Rc1Error names the problem."""
-    from pydrake.common.yaml import yaml_load_typed
+    """The friction of a model file (config.load_model_file); Rc1Error names the problem."""
+    from .config import load_model_file
 
-    from .config import Scenario, validate
-
-    try:
-        friction = yaml_load_typed(schema=Friction, filename=str(path))
-    except FileNotFoundError:
-        raise Rc1Error(f"{path}: no such friction file") from None
-    except Exception as e:  # noqa: BLE001 - any parse failure is a malformed file
-        raise Rc1Error(f"{path}: {' '.join(str(e).split())}") from None
-    validate(Scenario(friction=friction), where=str(path))
-    return friction
+    return load_model_file(path).friction
 
 
 def avs_figure(result: AvsResult):
@@ -237,6 +258,7 @@ def avs_figure(result: AvsResult):
 # vector is standardized and its Jacobian gives a Fisher information.
 RESIDUAL_SIGMAS = {"final_m": 0.01, "yaw_rate_rad_s": 0.05, "camera_m": 0.01}
 RESIDUAL_PERIOD_S = 0.1
+FINAL_CHANNEL, PATH_CHANNEL = 0, 1  # the final position (by hand); the camera path or yaw rate over time
 
 
 def trial_residual(trial, run) -> np.ndarray:
@@ -269,15 +291,20 @@ def _replay_residual(trial, friction: Friction, effects=None) -> np.ndarray:
 
 
 class CampaignResiduals:
-    """The stacked standardized residuals of the trials for a friction set; counts simulations."""
+    """The stacked standardized residuals of the trials for a friction set (and effects: by default the
+    ones given here); counts simulations."""
 
     def __init__(self, trials, *, executor=None, effects=None):
         self.trials, self.executor, self.effects = list(trials), executor, effects
         self.simulations = 0
 
-    def __call__(self, friction: Friction) -> np.ndarray:
-        parts = _map_trials(_replay_residual, self.trials, friction, self.effects, self.executor)
+    def __call__(self, friction: Friction, effects=None) -> np.ndarray:
+        parts = _map_trials(_replay_residual, self.trials, friction, self.effects if effects is None else effects,
+                            self.executor)
         self.simulations += len(self.trials)
+        # Which channel each residual belongs to: each trial's first two are its final position.
+        self.channels = np.concatenate([np.r_[FINAL_CHANNEL, FINAL_CHANNEL, np.full(len(p) - 2, PATH_CHANNEL)]
+                                        for p in parts])
         return np.concatenate(parts)
 
 
@@ -287,7 +314,7 @@ class Uncertainty:
     values: List[float]
     standard_errors: List[float]  # inf where the data do not constrain the coefficient
     correlation: List[List[float]]
-    sensitivities: List[float]  # |d residual / d log(coefficient)|: how much the data see a 1% change, x100
+    sensitivities: List[float]  # |change of the standardized residuals| for a 1% change (uncertainty())
     identifiable: List[bool]
     residual_rms: float  # of the standardized residuals
     simulations: int
@@ -308,38 +335,62 @@ class Uncertainty:
         return "\n".join(lines)
 
 
+def _channel_variances(r, channels, num_parameters: int) -> np.ndarray:
+    """Per residual, its channel's variance in standardized units. The residuals are scaled by stated
+    uncertainties (RESIDUAL_SIGMAS) that are not all equally tight: the camera path's 1 cm scale is
+    twice its noise, the final position's 1 cm is all hand-measurement noise. So each channel's variance
+    is estimated from its own residuals (degrees of freedom shared in proportion), and the final
+    position's may exceed 1 (a misfit larger than the noise) but not fall below it: two numbers a trial
+    cannot show that the hand measured better than stated."""
+    m = len(r)
+    channels = np.zeros(m, dtype=int) if channels is None or len(channels) != m else channels
+    variance = np.empty(m)
+    for c in np.unique(channels):
+        mine = channels == c
+        dof = max(mine.sum() * (m - num_parameters) / m, 1.0)
+        estimate = float(r[mine] @ r[mine]) / dof
+        variance[mine] = max(estimate, 1.0) if c == FINAL_CHANNEL else estimate
+    return variance
+
+
 def uncertainty(residuals, friction: Friction, *, parameters=None, relative_step=0.05,
-                max_relative_error=0.3) -> Uncertainty:
-    """Standard errors and correlations of the free coefficients from the residual Jacobian at
-    `friction` (forward differences in log-coefficient), cov = s^2 (J^T J)^-1 with s^2 the residual
-    variance; a coefficient is identifiable when its relative standard error is below
-    `max_relative_error`. Costs one residual evaluation per free coefficient, plus one."""
+                max_relative_error=0.3, effects=None) -> Uncertainty:
+    """Standard errors and correlations of the free parameters from the residual Jacobian at
+    (`friction`, `effects`): the sandwich (J^T J)^-1 J^T S J (J^T J)^-1 of least squares with S the
+    residual variance of each channel (_channel_variances); a parameter is identifiable when its relative standard error is below `max_relative_error`. Costs
+    one residual evaluation per free parameter, plus one.
+
+    The Jacobian is taken in the parameters' own units (forward differences of 5% of the value, at least
+    0.5% of the bounds' range for a coefficient, 2% of the range for an effect parameter), not in their
+    logarithm: at a coefficient near zero a log-scale column vanishes, and with it the correlation that
+    should widen the other coefficients' intervals. Sensitivities are per 1% of a coefficient's value
+    (of the range where it is 0, and for effect parameters)."""
     free = [p for p in (parameters or DEFAULT_PARAMETERS) if not p.frozen]
     start_sims = getattr(residuals, "simulations", 0)
-    r0 = residuals(friction)
-    columns = []
+    r0 = residuals(friction, effects)
+    columns, per_percent = [], []
     for p in free:
-        value = getattr(friction, p.name)
-        base = value if value > 0 else 1e-3 * (p.upper - p.lower)
-        h = relative_step * base
-        step = h if base + h <= p.upper else -h
-        shifted = dataclasses.replace(friction, **{p.name: base + step})
-        columns.append((residuals(shifted) - r0) / step * base)  # d r / d log(theta)
+        value, span = parameter_value(p.name, friction, effects), p.upper - p.lower
+        h = max(relative_step * abs(value), 0.005 * span) if p.is_friction else 0.02 * span
+        step = h if value + h <= p.upper else -h
+        columns.append((residuals(*with_values(friction, effects, {p.name: value + step})) - r0) / step)
+        per_percent.append(0.01 * (abs(value) if p.is_friction and value > 0 else span))
     jac = np.column_stack(columns)
     m, n = jac.shape
-    s2 = float(r0 @ r0) / max(m - n, 1)
+    variance = _channel_variances(r0, getattr(residuals, "channels", None), n)
     u, sv, vt = np.linalg.svd(jac, full_matrices=False)
     keep = sv > 1e-9 * max(sv.max(), 1e-300)
-    inv = (vt[keep].T / sv[keep] ** 2) @ vt[keep]
-    cov_log = s2 * inv
-    values = [getattr(friction, p.name) for p in free]
+    inv = (vt[keep].T / sv[keep] ** 2) @ vt[keep]  # (J^T J)^-1 on the identifiable subspace
+    cov = inv @ (jac.T * variance) @ jac @ inv  # the least-squares estimate's covariance (sandwich)
+    values = [parameter_value(p.name, friction, effects) for p in free]
     null = np.abs(vt[~keep]).max(axis=0) > 1e-6 if (~keep).any() else np.zeros(n, dtype=bool)
-    se = [math.inf if null[i] else float(abs(values[i]) * math.sqrt(max(cov_log[i, i], 0.0))) for i in range(n)]
-    d = np.sqrt(np.clip(np.diag(cov_log), 1e-300, None))
-    corr = np.where(np.outer(d, d) > 0, cov_log / np.outer(d, d), 0.0)
+    se = [math.inf if null[i] else float(math.sqrt(max(cov[i, i], 0.0))) for i in range(n)]
+    d = np.sqrt(np.clip(np.diag(cov), 1e-300, None))
+    corr = np.where(np.outer(d, d) > 0, cov / np.outer(d, d), 0.0)
     identifiable = [math.isfinite(s) and s < max_relative_error * abs(v) for s, v in zip(se, values, strict=True)]
     return Uncertainty(names=[p.name for p in free], values=values, standard_errors=se,
-                       correlation=np.round(corr, 4).tolist(), sensitivities=[float(np.linalg.norm(c)) / 100 for c in columns],
+                       correlation=np.round(corr, 4).tolist(),
+                       sensitivities=[float(np.linalg.norm(c)) * k for c, k in zip(columns, per_percent, strict=True)],
                        identifiable=identifiable, residual_rms=float(np.sqrt(np.mean(r0**2))),
                        simulations=getattr(residuals, "simulations", 0) - start_sims)
 
@@ -353,12 +404,17 @@ class ProgramResult:
     cost: float
     iterations: int
     simulations: int
-    jacobian: np.ndarray = dataclasses.field(repr=False, default=None)  # d r / d log(theta) at the result
+    jacobian: np.ndarray = dataclasses.field(repr=False, default=None)  # d r / d u at the result
+    effects: Dict[str, float] = dataclasses.field(default_factory=dict)  # the model's effects at the result
+    held: List[str] = dataclasses.field(default_factory=list)  # free, but not identifiable at the start: not fitted
+    screening: Optional["Uncertainty"] = dataclasses.field(repr=False, default=None)
 
     def to_json(self) -> dict:
         return {"method": "program", "solver": "snopt", "start": dataclasses.asdict(self.start),
-                "friction": dataclasses.asdict(self.friction), "cost_start": self.cost_start, "cost": self.cost,
-                "iterations": self.iterations, "simulations": self.simulations}
+                "friction": dataclasses.asdict(self.friction), "effects": self.effects, "cost_start": self.cost_start,
+                "cost": self.cost, "iterations": self.iterations, "simulations": self.simulations,
+                "held_at_start": self.held,
+                "screening": None if self.screening is None else dataclasses.asdict(self.screening)}
 
 
 def _bounded_step(jac, r, damping, lower, upper):
@@ -378,32 +434,46 @@ def _bounded_step(jac, r, damping, lower, upper):
 
 
 def fit_program(residuals, *, start: Friction, parameters=None, log_step: float = 0.02, max_iterations: int = 10,
-                tolerance: float = 1e-2, on_iteration=None) -> ProgramResult:
+                tolerance: float = 1e-2, on_iteration=None, start_effects=None) -> ProgramResult:
     """Least squares of the standardized residuals (final position, yaw rate, camera path) over the log
-    of each free coefficient, within its bounds: Levenberg-Marquardt iterations whose bounded steps are
-    Drake MathematicalPrograms solved by SNOPT. The simulation is not differentiable, so the Jacobian
-    comes from forward differences (one residual evaluation per free coefficient per iteration).
-    `on_iteration(friction, simulations)`, if given, is called after every accepted step."""
+    of each free friction coefficient and the value of each free effect parameter (scaled by its range),
+    within bounds: Levenberg-Marquardt iterations whose bounded steps are Drake MathematicalPrograms
+    solved by SNOPT. The simulation is not differentiable, so the Jacobian comes from forward differences
+    (one residual evaluation per free parameter per iteration). `on_iteration(friction, simulations)`,
+    if given, is called after every accepted step."""
     free = [p for p in (parameters or DEFAULT_PARAMETERS) if not p.frozen]
-    base = np.array([max(getattr(start, p.name), 1e-3 * (p.upper - p.lower)) for p in free])
-    lower = np.array([math.log(max(p.lower, 1e-6) / b) for p, b in zip(free, base, strict=True)])
-    upper = np.array([math.log(p.upper / b) for p, b in zip(free, base, strict=True)])
+    start_effects = dict(start_effects or {})
+    span = np.array([1.0 if p.is_friction else p.upper - p.lower for p in free])
+    base = np.array([max(getattr(start, p.name), 1e-3 * (p.upper - p.lower)) if p.is_friction
+                     else min(max(parameter_value(p.name, start, start_effects), p.lower), p.upper) for p in free])
+    lower = np.array([math.log(max(p.lower, 1e-6) / b) if p.is_friction else (p.lower - b) / s
+                      for p, b, s in zip(free, base, span, strict=True)])
+    upper = np.array([math.log(p.upper / b) if p.is_friction else (p.upper - b) / s
+                      for p, b, s in zip(free, base, span, strict=True)])
     start_sims = getattr(residuals, "simulations", 0)
 
+    def model_at(u):
+        values = {p.name: float(b * math.exp(x) if p.is_friction else b + s * x)
+                  for p, b, s, x in zip(free, base, span, u, strict=True)}
+        return with_values(start, start_effects, values)
+
     def friction_at(u):
-        return dataclasses.replace(start, **{p.name: float(b * math.exp(x)) for p, b, x in zip(free, base, u, strict=True)})
+        return model_at(u)[0]
 
     u = np.zeros(len(free))
-    r = residuals(friction_at(u))
+    r = residuals(*model_at(u))
     cost_start = cost = 0.5 * float(r @ r)
+    if not free:
+        return ProgramResult(start=start, friction=start, cost_start=cost, cost=cost, iterations=0,
+                             simulations=getattr(residuals, "simulations", 0) - start_sims, effects=start_effects)
     damping, iterations = 1.0, 0
     jac = None
     for k in range(1, max_iterations + 1):
         iterations = k
-        jac = np.column_stack([(residuals(friction_at(u + log_step * e)) - r) / log_step for e in np.eye(len(u))])
+        jac = np.column_stack([(residuals(*model_at(u + log_step * e)) - r) / log_step for e in np.eye(len(u))])
         while True:
             step = _bounded_step(jac, r, damping, lower - u, upper - u)
-            r_new = residuals(friction_at(u + step))
+            r_new = residuals(*model_at(u + step))
             cost_new = 0.5 * float(r_new @ r_new)
             if cost_new < cost:
                 damping = max(damping / 3, 1e-6)
@@ -419,19 +489,38 @@ def fit_program(residuals, *, start: Friction, parameters=None, log_step: float 
             on_iteration(friction_at(u), getattr(residuals, "simulations", 0) - start_sims)
         if improvement < tolerance or np.abs(step).max() < 1e-3:
             break
-    return ProgramResult(start=start, friction=friction_at(u), cost_start=cost_start, cost=cost,
+    friction, effects = model_at(u)
+    return ProgramResult(start=start, friction=friction, cost_start=cost_start, cost=cost,
                          iterations=iterations, simulations=getattr(residuals, "simulations", 0) - start_sims,
-                         jacobian=jac)
+                         jacobian=jac, effects=effects)
+
+
+def screen(residuals, start: Friction, *, parameters=None, effects=None) -> tuple:
+    """Identifiability first: the uncertainty at the start, and the parameters with every free one that
+    it finds not identifiable frozen at its start value, so that the fit does not wander along
+    directions the data do not see (and report a number for them). Returns (parameters, Uncertainty)."""
+    parameters = parameters or DEFAULT_PARAMETERS
+    first = uncertainty(residuals, start, parameters=parameters, effects=effects)
+    hidden = {n for n, ok in zip(first.names, first.identifiable, strict=True) if not ok}
+    return [dataclasses.replace(p, frozen=p.frozen or p.name in hidden) for p in parameters], first
 
 
 def identify_program(campaign, *, trials=None, workers=None, scheduler=None, start=PAPER_MANUAL, parameters=None,
-                     max_iterations=10):
-    """The program fit on the chosen trials, then the uncertainty of its result."""
+                     max_iterations=10, effects=None, screened=True):
+    """The program fit on the chosen trials (the model with `effects`, held fixed), then the uncertainty
+    of its result over every originally free parameter. With `screened`, the parameters the start's
+    uncertainty finds not identifiable stay at their start values (screen()); the result's warnings
+    say so. Returns (ProgramResult, Uncertainty)."""
     chosen = choose_trials(campaign, trials)
+    parameters = parameters or DEFAULT_PARAMETERS
     with make_executor(workers=workers or min(os.cpu_count() or 1, len(chosen)), scheduler=scheduler) as executor:
-        residuals = CampaignResiduals(chosen, executor=executor)
-        result = fit_program(residuals, start=start, parameters=parameters, max_iterations=max_iterations)
+        residuals = CampaignResiduals(chosen, executor=executor, effects=effects)
+        fitted, first = screen(residuals, start, parameters=parameters) if screened else (parameters, None)
+        result = fit_program(residuals, start=start, parameters=fitted, max_iterations=max_iterations)
         spread = uncertainty(residuals, result.friction, parameters=parameters)
+    result.held = [p.name for p, q in zip(parameters, fitted, strict=True) if q.frozen and not p.frozen]
+    result.screening = first
+    result.simulations += first.simulations if first else 0
     return result, spread
 
 
@@ -487,11 +576,12 @@ def split_trials(campaign, *, trials=None, validation=None) -> tuple:
     return estimation, held
 
 
-def held_out_errors(estimation, validation, friction: Friction, *, workers=None, scheduler=None) -> HeldOut:
-    """Eq. 6 errors of `friction` on the estimation trials and on the validation trials (split_trials)."""
+def held_out_errors(estimation, validation, friction: Friction, *, workers=None, scheduler=None,
+                    effects=None) -> HeldOut:
+    """Eq. 6 errors of `friction` (and `effects`) on the estimation and the validation trials (split_trials)."""
     everything = estimation + validation
     with make_executor(workers=workers or min(os.cpu_count() or 1, len(everything)), scheduler=scheduler) as executor:
-        errors = Eq6Objective(everything, executor=executor).per_trial(friction)
+        errors = Eq6Objective(everything, executor=executor, effects=effects).per_trial(friction)
     k = len(estimation)
     return HeldOut(estimation_trials=[t.trial_id for t in estimation],
                    validation_trials=[t.trial_id for t in validation],

@@ -47,7 +47,7 @@ def case_label(failures: List[Failure]) -> str:
 
 def make_jobs(*, failure_sets, trials=5, seed=0, phase_jitter_deg=5.0, position_jitter_m=0.01,
               heading_jitter_deg=1.0, friction=None, friction_spread=0.0, bias_deg=0.0, stop=None,
-              numerics=None) -> List[SweepJob]:
+              numerics=None, effects=None) -> List[SweepJob]:
     """Jobs for each failure set (a list of Failures; [] for none) times `trials`, with the start
     phase and pose drawn around the protocol's, and optionally each friction coefficient drawn
     uniformly within +-friction_spread (a fraction) of its value."""
@@ -63,7 +63,7 @@ def make_jobs(*, failure_sets, trials=5, seed=0, phase_jitter_deg=5.0, position_
                                     for f in dataclasses.fields(Friction)})
             scenario = Scenario(
                 gait=Gait(phase_offset_deg=float(rng.normal(0, phase_jitter_deg)), bias_deg=bias_deg),
-                friction=drawn, failures=list(failures),
+                friction=drawn, failures=list(failures), effects=dict(effects or {}),
                 start=Start(x_m=float(rng.normal(0, position_jitter_m)), y_m=float(rng.normal(0, position_jitter_m)),
                             heading_deg=float(rng.normal(0, heading_jitter_deg))),
                 stop=stop, numerics=numerics)

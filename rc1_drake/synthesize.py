@@ -14,7 +14,7 @@ from typing import List, Optional
 
 import numpy as np
 
-from .config import Failure, Friction, Gait, Numerics, Scenario, Start, Stop
+from .config import Failure, Friction, Gait, Numerics, Rc1Error, Scenario, Start, Stop
 from .diagram import build_key
 from .measurements import Campaign, Stop as TrialStop, Trial, write_trial
 from .protocol import Session
@@ -58,18 +58,15 @@ class Variation:
 # failure in this model (README).
 PAPER_DESIGN = [Case([], 5), Case([7], 5), Case([13], 5), Case([7], 5, bias_deg=-0.9), Case([2], 1)]
 
-# A standing wave (phase step 0) at 360 deg/s: the wheels slip sideways, so the lateral friction law
-# (mu_lat, c_lat) shows, and a free joint swings fast, so c_joint does.
-STANDING_WAVE = Gait(amplitude_deg=30.0, frequency_deg_s=360.0, phase_step_deg=0.0)
-
-# A design under which all five coefficients are identifiable (benchmarks/identification.py, README):
-# gait frequencies from 70 to 480 deg/s spread the rolling speeds (mu_long against c_long), the
-# standing wave makes the wheels slip (mu_lat against c_lat), failures in it show c_joint.
+# The richest design within RC1's servos (joint speed A omega <= 140 deg/s) whose trials replay
+# faithfully (benchmarks/identification.py, README "Friction identification"): three gait frequencies
+# spread the rolling speeds (mu_long against c_long); failures of joints 7 and 13 at two speeds show
+# c_joint. (Joint-2 failures circle, and their replays drift from the truth even at its coefficients.)
 IDENTIFICATION_DESIGN = [
-    Case([], 1), Case([], 1, gait=Gait(frequency_deg_s=70.0)), Case([], 1, gait=Gait(amplitude_deg=30.0, frequency_deg_s=280.0)),
-    Case([], 1, gait=Gait(amplitude_deg=20.0, frequency_deg_s=480.0)), Case([], 1, gait=STANDING_WAVE),
-    Case([7], 1), Case([7], 1, gait=STANDING_WAVE), Case([2], 1, gait=STANDING_WAVE),
+    Case([], 1), Case([], 1, gait=Gait(frequency_deg_s=70.0)), Case([], 1, gait=Gait(frequency_deg_s=210.0)),
+    Case([7], 1), Case([7], 1, gait=Gait(frequency_deg_s=210.0)), Case([13], 1),
 ]
+SERVO_SPEED_LIMIT_DEG_S = 140.0  # HiTec HS5645MG (paper section 2; models/rc1.sdf)
 DESIGNS = {"paper": PAPER_DESIGN, "identification": IDENTIFICATION_DESIGN}
 
 
@@ -85,6 +82,8 @@ def synthesize_campaign(folder, *, design=PAPER_DESIGN, friction=None, effects=N
     numerics = dataclasses.replace(numerics or Numerics(), log_period_s=sample_period_s)
     folder = Path(folder)
     trials, sessions = [], {}
+    for case in design:
+        _check_within_servos(case)
     for case in design:
         for k in range(case.trials):
             label = ("j" + "_".join(map(str, case.failed_joints)) if case.failed_joints else "nominal") + (
@@ -114,6 +113,17 @@ def synthesize_campaign(folder, *, design=PAPER_DESIGN, friction=None, effects=N
         }
         Path(truth_file).write_text(json.dumps(truth, indent=2) + "\n")
     return Campaign(path=folder, trials=trials)
+
+
+def _check_within_servos(case: Case) -> None:
+    """Rc1Error for a gait RC1's servos cannot drive: the truth model does not cap joint speed."""
+    from .gait import serpenoid_parameters
+
+    amp, omega, _, _ = serpenoid_parameters(case.gait or Gait())
+    peak = math.degrees(float(np.max(np.abs(amp) * omega)))
+    if peak > SERVO_SPEED_LIMIT_DEG_S + 1e-9:
+        raise Rc1Error(f"synthesize: case {case}: the gait needs {peak:.0f} deg/s of joint speed; RC1's servos "
+                       f"reach {SERVO_SPEED_LIMIT_DEG_S:.0f} deg/s")
 
 
 def _measure(run, scenario, trial_id, noise: Noise, rng, camera, period) -> Trial:

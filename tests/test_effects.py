@@ -162,3 +162,24 @@ def test_a_users_own_effect_with_an_explicit_force(tmp_path):
         assert measured[1] == pytest.approx((6.0 - 0.12 * 13 * N) / (14 * M), rel=1e-3)
     finally:
         del LIBRARY["test_tether"]
+
+
+def test_effects_reach_a_run_from_the_command_line_and_from_a_model_file(tmp_path):
+    """--effect and a model file's effects give the run the Python API gives; a bad one is one line."""
+    import json
+
+    from rc1_drake.cli import main
+    from rc1_drake.config import Friction, model_to_yaml
+
+    effects = {"ground_slope_deg": 4.0, "ground_slope_direction_deg": 90.0, "head_drag_mu": 0.2}
+    expected = simulate(scenario=dataclasses.replace(SHORT, friction=Friction(mu_lat=1.2), effects=effects))
+    model = tmp_path / "model.yaml"
+    model.write_text(model_to_yaml(Friction(mu_lat=1.2), {"ground_slope_deg": 4.0, "head_drag_mu": 0.2}))
+    out = tmp_path / "run.json"
+    assert main(["run", "--model-file", str(model), "--effect", "ground_slope_direction_deg=90", "--time-limit-s",
+                 "1", "--json", str(out)]) == 0
+    record = json.loads(out.read_text())
+    assert np.allclose(record["final_head_xy_m"], expected.head_xy[-1], atol=1e-9)
+    model.write_text("friction: {mu_lat: 1.2}\neffects: {head_drag_mu: 5}\n")
+    assert main(["run", "--model-file", str(model)]) == 2
+
