@@ -131,6 +131,9 @@ def make_parser() -> argparse.ArgumentParser:
                      help="comma-separated held-out trial ids to score the result on (default: the trials not fitted)")
     idn.add_argument("--iterations", type=_positive_int, default=10, metavar="N",
                      help="AVS iterations, or the program fit's at most (default 10)")
+    idn.add_argument("--input-noise-samples", type=int, default=0, metavar="K",
+                     help="widen the reported intervals by the potentiometer noise the replays follow, from K "
+                          "resampled replays per trial (default 0: output noise only, intervals too narrow)")
     idn.add_argument("--start", "--model-file", dest="start", type=Path, metavar="MODEL.yaml",
                      help="a model file: starting coefficients (default: the paper's manual values; frozen ones "
                           "stay at them) and effects, which stay fixed")
@@ -401,7 +404,8 @@ def cmd_identify(args) -> int:
     if args.method == "avs":
         result, spread = identify_avs(campaign, trials=trials, iterations=args.iterations, workers=args.workers,
                                       scheduler=args.scheduler, parameters=parameters, progress=progress,
-                                      start=start_friction, effects=effects)
+                                      start=start_friction, effects=effects,
+                                      input_noise_samples=args.input_noise_samples)
         print("Friction identification by AVS (paper Table 1; * = the coefficient each iteration varied):")
         print(result.table())
     elif args.method == "program":
@@ -414,7 +418,7 @@ def cmd_identify(args) -> int:
                 record["equation_error_start"] = seed.to_json()
         result, spread = identify_program(campaign, trials=trials, workers=args.workers, scheduler=args.scheduler,
                                           parameters=parameters, max_iterations=args.iterations, start=start_friction,
-                                          effects=effects)
+                                          effects=effects, input_noise_samples=args.input_noise_samples)
         print(f"Friction identification by least squares ({result.iterations} iterations, cost "
               f"{result.cost_start:.1f} -> {result.cost:.1f}):")
         if result.held:

@@ -208,15 +208,15 @@ def choose_trials(campaign, trial_ids=None) -> list:
 
 
 def identify_avs(campaign, *, trials=None, iterations=10, workers=None, scheduler=None, start=PAPER_MANUAL,
-                 parameters=None, progress=None, effects=None):
+                 parameters=None, progress=None, effects=None, input_noise_samples=0):
     """AVS on the chosen trials (the model with `effects`, held fixed), then the uncertainty of its
-    result: (AvsResult, Uncertainty)."""
+    result (uncertainty(), with `input_noise_samples`): (AvsResult, Uncertainty)."""
     chosen = choose_trials(campaign, trials)
     with make_executor(workers=workers or min(os.cpu_count() or 1, len(chosen)), scheduler=scheduler) as executor:
         objective = Eq6Objective(chosen, executor=executor, effects=effects)
         result = avs(objective, start=start, iterations=iterations, parameters=parameters, progress=progress)
         spread = uncertainty(CampaignResiduals(chosen, executor=executor, effects=effects), result.friction,
-                             parameters=parameters)
+                             parameters=parameters, input_noise_samples=input_noise_samples)
     return result, spread
 
 
@@ -290,6 +290,23 @@ def _replay_residual(trial, friction: Friction, effects=None) -> np.ndarray:
     return trial_residual(trial, _replay(trial, friction, effects))
 
 
+def _input_noise_covariance(trial, friction: Friction, effects, samples: int, seed: int) -> np.ndarray:
+    """Covariance of one trial's residuals over `samples` replays with resampled angle noise."""
+    from .replay import Replayer
+
+    key = str(trial.source or trial.trial_id)
+    if key not in _REPLAYERS:
+        _REPLAYERS[key] = Replayer(trial)
+    replayer, rng = _REPLAYERS[key], np.random.default_rng(seed)
+    base = trial_residual(trial, replayer.run(friction, effects))
+    draws = [trial_residual(trial, replayer.run_resampled(friction, effects, rng)) for _ in range(samples)]
+    draws = np.array([d for d in draws if len(d) == len(base)])  # a replay that stopped elsewhere: left out
+    if len(draws) < 2:
+        return np.zeros((len(base), len(base)))
+    deviation = draws - draws.mean(axis=0)
+    return deviation.T @ deviation / (len(draws) - 1)
+
+
 class CampaignResiduals:
     """The stacked standardized residuals of the trials for a friction set (and effects: by default the
     ones given here); counts simulations."""
@@ -306,6 +323,20 @@ class CampaignResiduals:
         self.channels = np.concatenate([np.r_[FINAL_CHANNEL, FINAL_CHANNEL, np.full(len(p) - 2, PATH_CHANNEL)]
                                         for p in parts])
         return np.concatenate(parts)
+
+    def input_noise(self, friction: Friction, effects=None, *, samples: int = 8, seed: int = 0) -> np.ndarray:
+        """Block-diagonal covariance of the stacked residuals that the angle noise in the replays' input
+        causes, from `samples` resampled replays per trial (plus one unperturbed)."""
+        from scipy.linalg import block_diag
+
+        jobs = [(t, friction, self.effects if effects is None else effects, samples, seed + k)
+                for k, t in enumerate(self.trials)]
+        if self.executor is None:
+            blocks = [_input_noise_covariance(*job) for job in jobs]
+        else:
+            blocks = [f.result() for f in [self.executor.submit(_input_noise_covariance, *job) for job in jobs]]
+        self.simulations += (samples + 1) * len(self.trials)
+        return block_diag(*blocks)
 
 
 @dataclasses.dataclass
@@ -354,10 +385,12 @@ def _channel_variances(r, channels, num_parameters: int) -> np.ndarray:
 
 
 def uncertainty(residuals, friction: Friction, *, parameters=None, relative_step=0.05,
-                max_relative_error=0.3, effects=None) -> Uncertainty:
+                max_relative_error=0.3, effects=None, input_noise_samples: int = 0) -> Uncertainty:
     """Standard errors and correlations of the free parameters from the residual Jacobian at
     (`friction`, `effects`): the sandwich (J^T J)^-1 J^T S J (J^T J)^-1 of least squares with S the
-    residual variance of each channel (_channel_variances); a parameter is identifiable when its relative standard error is below `max_relative_error`. Costs
+    residual variance of each channel (_channel_variances), plus, with `input_noise_samples`, the
+    covariance that the angle noise in the replays' input causes (CampaignResiduals.input_noise: that
+    many more replays per trial); a parameter is identifiable when its relative standard error is below `max_relative_error`. Costs
     one residual evaluation per free parameter, plus one.
 
     The Jacobian is taken in the parameters' own units (forward differences of 5% of the value, at least
@@ -381,7 +414,10 @@ def uncertainty(residuals, friction: Friction, *, parameters=None, relative_step
     u, sv, vt = np.linalg.svd(jac, full_matrices=False)
     keep = sv > 1e-9 * max(sv.max(), 1e-300)
     inv = (vt[keep].T / sv[keep] ** 2) @ vt[keep]  # (J^T J)^-1 on the identifiable subspace
-    cov = inv @ (jac.T * variance) @ jac @ inv  # the least-squares estimate's covariance (sandwich)
+    spread = np.diag(variance)
+    if input_noise_samples and hasattr(residuals, "input_noise"):
+        spread = spread + residuals.input_noise(friction, effects, samples=input_noise_samples)
+    cov = inv @ jac.T @ spread @ jac @ inv  # the least-squares estimate's covariance (sandwich)
     values = [parameter_value(p.name, friction, effects) for p in free]
     null = np.abs(vt[~keep]).max(axis=0) > 1e-6 if (~keep).any() else np.zeros(n, dtype=bool)
     se = [math.inf if null[i] else float(math.sqrt(max(cov[i, i], 0.0))) for i in range(n)]
@@ -506,18 +542,18 @@ def screen(residuals, start: Friction, *, parameters=None, effects=None) -> tupl
 
 
 def identify_program(campaign, *, trials=None, workers=None, scheduler=None, start=PAPER_MANUAL, parameters=None,
-                     max_iterations=10, effects=None, screened=True):
+                     max_iterations=10, effects=None, screened=True, input_noise_samples=0):
     """The program fit on the chosen trials (the model with `effects`, held fixed), then the uncertainty
     of its result over every originally free parameter. With `screened`, the parameters the start's
     uncertainty finds not identifiable stay at their start values (screen()); the result's warnings
-    say so. Returns (ProgramResult, Uncertainty)."""
+    say so; `input_noise_samples` goes to the result's uncertainty(). Returns (ProgramResult, Uncertainty)."""
     chosen = choose_trials(campaign, trials)
     parameters = parameters or DEFAULT_PARAMETERS
     with make_executor(workers=workers or min(os.cpu_count() or 1, len(chosen)), scheduler=scheduler) as executor:
         residuals = CampaignResiduals(chosen, executor=executor, effects=effects)
         fitted, first = screen(residuals, start, parameters=parameters) if screened else (parameters, None)
         result = fit_program(residuals, start=start, parameters=fitted, max_iterations=max_iterations)
-        spread = uncertainty(residuals, result.friction, parameters=parameters)
+        spread = uncertainty(residuals, result.friction, parameters=parameters, input_noise_samples=input_noise_samples)
     result.held = [p.name for p, q in zip(parameters, fitted, strict=True) if q.frozen and not p.frozen]
     result.screening = first
     result.simulations += first.simulations if first else 0

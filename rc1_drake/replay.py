@@ -38,12 +38,14 @@ class JointReference:
     trajectory: object  # PiecewisePolynomial of q
 
 
-def joint_reference(trial: Trial) -> JointReference:
+def joint_reference(trial: Trial, measured_q=None) -> JointReference:
+    """The smoothed reference of the trial's working joints (from `measured_q` in place of trial.q, if given)."""
     t = trial.t - trial.t[0]
+    measured = trial.q if measured_q is None else measured_q
     q = np.zeros_like(trial.q)
     q_dot = np.zeros_like(trial.q)
     for j in trial.working_joints:
-        spline = make_smoothing_spline(t, trial.q[:, j - 1])
+        spline = make_smoothing_spline(t, measured[:, j - 1])
         q[:, j - 1] = spline(t)
         q_dot[:, j - 1] = spline.derivative()(t)
     trajectory = PiecewisePolynomial.CubicHermite(t, q.T, q_dot.T)
@@ -90,6 +92,28 @@ class Replayer:
     def run(self, friction: Friction, effects=None) -> Run:
         scenario = replay_scenario(self.trial, friction, effects, self.numerics)
         return self.session.simulate(scenario, initial=self.initial)
+
+    def angle_noise_rad(self) -> float:
+        """The potentiometers' noise as the smoothing sees it: RMS of measured minus smoothed angles."""
+        working = [j - 1 for j in self.trial.working_joints]
+        if not working:
+            return 0.0
+        return float(np.sqrt(np.mean((self.trial.q[:, working] - self.reference.q[:, working]) ** 2)))
+
+    def run_resampled(self, friction: Friction, effects, rng) -> Run:
+        """A replay from the measured angles with fresh noise of angle_noise_rad() added: how much the
+        replay moves with the noise the potentiometers put into its input (a parametric bootstrap)."""
+        working = [j - 1 for j in self.trial.working_joints]
+        noisy = self.trial.q.copy()
+        noisy[:, working] += rng.normal(0.0, self.angle_noise_rad(), (len(noisy), len(working)))
+        reference = joint_reference(self.trial, noisy)
+        source = self.session.built.diagram.GetSubsystemByName("joint_reference")
+        source.UpdateTrajectory(reference.trajectory)
+        try:
+            initial = replay_initial_state(self.trial, reference, self.session.built.rc1.geometry)
+            return self.session.simulate(replay_scenario(self.trial, friction, effects, self.numerics), initial=initial)
+        finally:
+            source.UpdateTrajectory(self.reference.trajectory)
 
 
 def replay(trial: Trial, friction: Friction, effects=None, numerics=None) -> Run:

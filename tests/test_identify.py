@@ -175,3 +175,24 @@ def test_an_effect_parameter_is_fitted_beside_the_friction(tmp_path):
     assert result.effects["wheel_toe_deg"] == pytest.approx(1.0, rel=0.05)
     spread = uncertainty(residuals, result.friction, parameters=parameters, effects=result.effects)
     assert spread.values == [result.effects["wheel_toe_deg"]] and spread.identifiable == [True]
+
+
+def test_input_noise_widens_the_intervals_to_cover_the_scatter(tmp_path):
+    """With sensor noise, a 1 deg wheel toe fitted from one 3 s trial lands several output-noise standard
+    errors away (the replay follows noisy potentiometer angles); resampling that input noise through
+    the replay widens the interval until it covers the truth."""
+    from rc1_drake.identify import CampaignResiduals, effect_parameters, fit_program, uncertainty
+
+    folder = tmp_path / "c"
+    synthesize_campaign(folder, design=[Case([], 1)], seed=4, effects={"wheel_toe_deg": 1.0},
+                        stop=Stop(line_x_m=None, revolutions=None, time_limit_s=3.0))
+    residuals = CampaignResiduals(load_campaign(folder).trials)
+    parameters = effect_parameters("wheel_toe")
+    result = fit_program(residuals, start=Friction(), parameters=parameters, max_iterations=4)
+    narrow = uncertainty(residuals, result.friction, parameters=parameters, effects=result.effects)
+    wide = uncertainty(residuals, result.friction, parameters=parameters, effects=result.effects,
+                       input_noise_samples=8)
+    (toe,), (se_out,), (se_in,) = narrow.values, narrow.standard_errors, wide.standard_errors
+    assert abs(toe - 1.0) > 3 * se_out  # the output-noise interval misses the truth ...
+    assert abs(toe - 1.0) <= 1.96 * se_in and se_in > 2 * se_out  # ... the one with the input noise covers it
+    assert wide.simulations == narrow.simulations + 9
