@@ -49,13 +49,14 @@ def campaign(folder, design, args):
 
 
 def design_study(args, executor, workdir):
-    print(f"\n1. relative standard error at the truth, % ({args.time_limit_s:g} s trials, seed {args.seed}); "
-          "* = identifiable (< 30%)")
+    print(f"\n1. relative standard error at the truth, % ({args.time_limit_s:g} s trials, seed {args.seed}, "
+          f"input noise from {args.input_noise_samples} resampled replays per trial); * = identifiable (< 30%)")
     print(f"{'design':45}" + "".join(f"{n:>10}" for n in FRICTION_NAMES) + f"{'replay rms':>11}{'sims':>6}{'wall s':>8}")
     for k, (name, design) in enumerate(DESIGNS.items()):
         start = time.perf_counter()
         trials = campaign(workdir / f"design{k}", design, args).trials
-        spread = uncertainty(CampaignResiduals(trials, executor=executor), Friction())
+        spread = uncertainty(CampaignResiduals(trials, executor=executor), Friction(),
+                             input_noise_samples=args.input_noise_samples)
         cells = "".join(f"{(100 * se / v if se != float('inf') else float('inf')):>9.0f}{'*' if ok else ' '}"
                         for v, se, ok in zip(spread.values, spread.standard_errors, spread.identifiable, strict=True))
         worst = max(float(np.sqrt(np.mean(_replay_residual(t, Friction()) ** 2))) for t in trials)
@@ -119,6 +120,8 @@ def main():
     parser.add_argument("--avs-iterations", type=int, default=10)
     parser.add_argument("--program-iterations", type=int, default=10)
     parser.add_argument("--only", choices=["design", "recovery", "cost"])
+    parser.add_argument("--input-noise-samples", type=int, default=8,
+                        help="resampled replays per trial for the input-noise part of the intervals (0: leave it out)")
     args = parser.parse_args()
     print(f"machine: {platform.processor() or platform.machine()}, {args.workers} workers, "
           f"python {platform.python_version()}")

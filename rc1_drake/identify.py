@@ -56,6 +56,9 @@ def with_values(friction: Friction, effects, values: Dict[str, float]) -> tuple:
             {**(effects or {}), **{k: v for k, v in values.items() if k not in FRICTION_NAMES}})
 
 
+# Resampled replays per trial for the input-noise part of every interval (uncertainty()).
+INPUT_NOISE_SAMPLES = 8
+
 DEFAULT_PARAMETERS = [
     Parameter("c_joint", 0.0, 0.5),
     Parameter("mu_lat", 0.05, 5.0),
@@ -208,7 +211,7 @@ def choose_trials(campaign, trial_ids=None) -> list:
 
 
 def identify_avs(campaign, *, trials=None, iterations=10, workers=None, scheduler=None, start=PAPER_MANUAL,
-                 parameters=None, progress=None, effects=None, input_noise_samples=0):
+                 parameters=None, progress=None, effects=None, input_noise_samples=INPUT_NOISE_SAMPLES):
     """AVS on the chosen trials (the model with `effects`, held fixed), then the uncertainty of its
     result (uncertainty(), with `input_noise_samples`): (AvsResult, Uncertainty)."""
     chosen = choose_trials(campaign, trials)
@@ -385,12 +388,13 @@ def _channel_variances(r, channels, num_parameters: int) -> np.ndarray:
 
 
 def uncertainty(residuals, friction: Friction, *, parameters=None, relative_step=0.05,
-                max_relative_error=0.3, effects=None, input_noise_samples: int = 0) -> Uncertainty:
+                max_relative_error=0.3, effects=None, input_noise_samples: int = INPUT_NOISE_SAMPLES) -> Uncertainty:
     """Standard errors and correlations of the free parameters from the residual Jacobian at
     (`friction`, `effects`): the sandwich (J^T J)^-1 J^T S J (J^T J)^-1 of least squares with S the
     residual variance of each channel (_channel_variances), plus, with `input_noise_samples`, the
     covariance that the angle noise in the replays' input causes (CampaignResiduals.input_noise: that
-    many more replays per trial); a parameter is identifiable when its relative standard error is below `max_relative_error`. Costs
+    many more replays per trial; INPUT_NOISE_SAMPLES by default, 0 leaves it out and understates the
+    intervals several times over, README); a parameter is identifiable when its relative standard error is below `max_relative_error`. Costs
     one residual evaluation per free parameter, plus one.
 
     The Jacobian is taken in the parameters' own units (forward differences of 5% of the value, at least
@@ -531,18 +535,20 @@ def fit_program(residuals, *, start: Friction, parameters=None, log_step: float 
                          jacobian=jac, effects=effects)
 
 
-def screen(residuals, start: Friction, *, parameters=None, effects=None) -> tuple:
+def screen(residuals, start: Friction, *, parameters=None, effects=None,
+           input_noise_samples: int = INPUT_NOISE_SAMPLES) -> tuple:
     """Identifiability first: the uncertainty at the start, and the parameters with every free one that
     it finds not identifiable frozen at its start value, so that the fit does not wander along
     directions the data do not see (and report a number for them). Returns (parameters, Uncertainty)."""
     parameters = parameters or DEFAULT_PARAMETERS
-    first = uncertainty(residuals, start, parameters=parameters, effects=effects)
+    first = uncertainty(residuals, start, parameters=parameters, effects=effects,
+                        input_noise_samples=input_noise_samples)
     hidden = {n for n, ok in zip(first.names, first.identifiable, strict=True) if not ok}
     return [dataclasses.replace(p, frozen=p.frozen or p.name in hidden) for p in parameters], first
 
 
 def identify_program(campaign, *, trials=None, workers=None, scheduler=None, start=PAPER_MANUAL, parameters=None,
-                     max_iterations=10, effects=None, screened=True, input_noise_samples=0):
+                     max_iterations=10, effects=None, screened=True, input_noise_samples=INPUT_NOISE_SAMPLES):
     """The program fit on the chosen trials (the model with `effects`, held fixed), then the uncertainty
     of its result over every originally free parameter. With `screened`, the parameters the start's
     uncertainty finds not identifiable stay at their start values (screen()); the result's warnings
@@ -551,7 +557,8 @@ def identify_program(campaign, *, trials=None, workers=None, scheduler=None, sta
     parameters = parameters or DEFAULT_PARAMETERS
     with make_executor(workers=workers or min(os.cpu_count() or 1, len(chosen)), scheduler=scheduler) as executor:
         residuals = CampaignResiduals(chosen, executor=executor, effects=effects)
-        fitted, first = screen(residuals, start, parameters=parameters) if screened else (parameters, None)
+        fitted, first = (screen(residuals, start, parameters=parameters, input_noise_samples=input_noise_samples)
+                         if screened else (parameters, None))
         result = fit_program(residuals, start=start, parameters=fitted, max_iterations=max_iterations)
         spread = uncertainty(residuals, result.friction, parameters=parameters, input_noise_samples=input_noise_samples)
     result.held = [p.name for p, q in zip(parameters, fitted, strict=True) if q.frozen and not p.frozen]
