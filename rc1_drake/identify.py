@@ -88,6 +88,11 @@ def _map_trials(function, trials, friction, effects, executor) -> list:
     return [f.result() for f in [executor.submit(function, t, friction, effects) for t in trials]]
 
 
+def _with_fixed(fixed, effects) -> dict:
+    """The model's fixed effects with `effects` (the ones being varied) set over them."""
+    return {**(fixed or {}), **(effects or {})}
+
+
 def _replay_error(trial, friction: Friction, effects=None) -> float:
     from .compare import simulator_error
 
@@ -106,13 +111,12 @@ class Eq6Objective:
         self._cache: Dict[tuple, float] = {}
 
     def per_trial(self, friction: Friction, effects=None) -> List[float]:
-        errors = _map_trials(_replay_error, self.trials, friction, self.effects if effects is None else effects,
-                             self.executor)
+        errors = _map_trials(_replay_error, self.trials, friction, _with_fixed(self.effects, effects), self.executor)
         self.simulations += len(self.trials)
         return errors
 
     def __call__(self, friction: Friction, effects=None) -> float:
-        key = dataclasses.astuple(friction) + tuple(sorted((effects or {}).items()))
+        key = dataclasses.astuple(friction) + tuple(sorted(_with_fixed(self.effects, effects).items()))
         if key not in self._cache:
             self._cache[key] = float(np.mean(self.per_trial(friction, effects)))
         return self._cache[key]
@@ -311,16 +315,15 @@ def _input_noise_covariance(trial, friction: Friction, effects, samples: int, se
 
 
 class CampaignResiduals:
-    """The stacked standardized residuals of the trials for a friction set (and effects: by default the
-    ones given here); counts simulations."""
+    """The stacked standardized residuals of the trials for a friction set (and effect parameters, set
+    over the fixed `effects` given here); counts simulations."""
 
     def __init__(self, trials, *, executor=None, effects=None):
         self.trials, self.executor, self.effects = list(trials), executor, effects
         self.simulations = 0
 
     def __call__(self, friction: Friction, effects=None) -> np.ndarray:
-        parts = _map_trials(_replay_residual, self.trials, friction, self.effects if effects is None else effects,
-                            self.executor)
+        parts = _map_trials(_replay_residual, self.trials, friction, _with_fixed(self.effects, effects), self.executor)
         self.simulations += len(self.trials)
         # Which channel each residual belongs to: each trial's first two are its final position.
         self.channels = np.concatenate([np.r_[FINAL_CHANNEL, FINAL_CHANNEL, np.full(len(p) - 2, PATH_CHANNEL)]
@@ -332,7 +335,7 @@ class CampaignResiduals:
         causes, from `samples` resampled replays per trial (plus one unperturbed)."""
         from scipy.linalg import block_diag
 
-        jobs = [(t, friction, self.effects if effects is None else effects, samples, seed + k)
+        jobs = [(t, friction, _with_fixed(self.effects, effects), samples, seed + k)
                 for k, t in enumerate(self.trials)]
         if self.executor is None:
             blocks = [_input_noise_covariance(*job) for job in jobs]

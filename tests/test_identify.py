@@ -5,6 +5,7 @@ import dataclasses
 import json
 import math
 
+import numpy as np
 import pytest
 
 from rc1_drake.cli import main
@@ -42,6 +43,18 @@ def test_frozen_coefficients_stay(campaign):
     result = avs(Eq6Objective(campaign.trials), iterations=2, parameters=params, factors=(0.5,))
     assert all(it.parameter == "mu_long" for it in result.iterations)
     assert all(getattr(result.friction, n) == getattr(PAPER_MANUAL, n) for n in FRICTION_NAMES if n != "mu_long")
+
+
+def test_fixed_effects_stay_in_every_evaluation_of_a_fit(campaign):
+    """A model's fixed effects (from a model file) stay in the residuals when a fit or the uncertainty
+    passes the effect parameters it varies (none, or others): they are set over the fixed ones."""
+    from rc1_drake.identify import CampaignResiduals
+
+    with_toe = CampaignResiduals(campaign.trials, effects={"wheel_toe_deg": 2.0})
+    fixed = with_toe(Friction())
+    assert np.array_equal(with_toe(Friction(), {}), fixed)
+    assert not np.allclose(CampaignResiduals(campaign.trials)(Friction()), fixed)
+    assert not np.allclose(with_toe(Friction(), {"wheel_toe_deg": 1.0}), fixed)
 
 
 def test_friction_file_round_trip_and_errors(tmp_path):
