@@ -28,8 +28,8 @@ import numpy as np
 
 from rc1_drake.config import FRICTION_NAMES, Friction, Gait, Stop
 from rc1_drake.executor import make_executor
-from rc1_drake.identify import (PAPER_MANUAL, CampaignResiduals, Eq6Objective, _replay_residual, avs, fit_program,
-                                screen, uncertainty)
+from rc1_drake.identify import (INPUT_NOISE_SAMPLES, PAPER_MANUAL, CampaignResiduals, Eq6Objective, _replay_residual,
+                                avs, fit_program, screen, uncertainty)
 from rc1_drake.measurements import load_campaign
 from rc1_drake.synthesize import IDENTIFICATION_DESIGN, Case, synthesize_campaign
 
@@ -120,7 +120,7 @@ def main():
     parser.add_argument("--avs-iterations", type=int, default=10)
     parser.add_argument("--program-iterations", type=int, default=10)
     parser.add_argument("--only", choices=["design", "recovery", "cost"])
-    parser.add_argument("--input-noise-samples", type=int, default=8,
+    parser.add_argument("--input-noise-samples", type=int, default=INPUT_NOISE_SAMPLES,
                         help="resampled replays per trial for the input-noise part of the intervals (0: leave it out)")
     args = parser.parse_args()
     print(f"machine: {platform.processor() or platform.machine()}, {args.workers} workers, "

@@ -12,6 +12,7 @@ from pathlib import Path
 
 from .config import (DEFAULT_SCENARIOS, FAILURE_MODES, FRICTION_NAMES, Failure, Friction, ModelFile, Rc1Error,
                      Scenario, Stop, load_model_file, load_scenario, validate)
+from .identify import INPUT_NOISE_SAMPLES
 
 
 class _Parser(argparse.ArgumentParser):
@@ -72,8 +73,8 @@ def make_parser() -> argparse.ArgumentParser:
     syn = sub.add_parser("synthesize", help="write a synthetic campaign in the measurement format")
     syn.add_argument("out", type=Path, help="campaign folder to create (must not exist)")
     syn.add_argument("--design", choices=["paper", "identification"], default="paper",
-                     help="paper: its cases, 5 trials each and 1 joint-2 trial; identification: 8 cases of "
-                          "gaits and failures under which all five friction coefficients are identifiable")
+                     help="paper: its cases, 5 trials each and 1 joint-2 trial; identification: 6 cases of gaits "
+                          "(70-210 deg/s) and failures, the richest within the servos whose trials replay faithfully")
     syn.add_argument("--trials-per-case", type=_positive_int, metavar="N",
                      help="trials in each case (the paper design's lone joint-2 trial stays one)")
     syn.add_argument("--time-limit-s", type=_float, metavar="T", help="end every trial after T s at the latest")
@@ -110,7 +111,8 @@ def make_parser() -> argparse.ArgumentParser:
     swp.add_argument("--double", action="store_true", help="every pair of the joints instead of one at a time")
     swp.add_argument("--no-nominal", action="store_true", help="leave out the no-failure case")
     swp.add_argument("--friction", type=_friction_override, action="append", default=[], metavar="NAME=VALUE")
-    swp.add_argument("--model-file", type=Path, metavar="PATH", help="a model file (friction and effects), e.g. from rc1 identify --out or rc1 diagnose")
+    swp.add_argument("--model-file", type=Path, metavar="PATH",
+                     help="a model file (friction and effects), e.g. from rc1 identify --out")
     swp.add_argument("--friction-spread", type=_float, default=0.0, metavar="F",
                      help="draw each friction coefficient within +-F (a fraction) of its value per run")
     swp.add_argument("--bias-deg", type=_float, default=0.0, metavar="B", help="bias on every joint, degrees")
@@ -131,9 +133,10 @@ def make_parser() -> argparse.ArgumentParser:
                      help="comma-separated held-out trial ids to score the result on (default: the trials not fitted)")
     idn.add_argument("--iterations", type=_positive_int, default=10, metavar="N",
                      help="AVS iterations, or the program fit's at most (default 10)")
-    idn.add_argument("--input-noise-samples", type=int, default=8, metavar="K",
+    idn.add_argument("--input-noise-samples", type=int, default=INPUT_NOISE_SAMPLES, metavar="K",
                      help="resampled replays per trial for the potentiometer noise the replays follow, in the "
-                          "screening and the reported intervals (default 8; 0 leaves it out: intervals too narrow)")
+                          f"screening and the reported intervals (default {INPUT_NOISE_SAMPLES}; 0 leaves it out: "
+                          "intervals too narrow)")
     idn.add_argument("--start", "--model-file", dest="start", type=Path, metavar="MODEL.yaml",
                      help="a model file: starting coefficients (default: the paper's manual values; frozen ones "
                           "stay at them) and effects, which stay fixed")
@@ -421,9 +424,6 @@ def cmd_identify(args) -> int:
                                           effects=effects, input_noise_samples=args.input_noise_samples)
         print(f"Friction identification by least squares ({result.iterations} iterations, cost "
               f"{result.cost_start:.1f} -> {result.cost:.1f}):")
-        if result.held:
-            print(f"held at their start values, not fitted (not identifiable from these trials at the start): "
-                  f"{', '.join(result.held)}")
     else:
         result = identify_equation_error(campaign, trials=trials, start=start_friction, parameters=parameters,
                                          effects=effects)

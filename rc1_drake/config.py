@@ -14,6 +14,7 @@ from pydrake.common.yaml import yaml_load_typed
 REPO_ROOT = Path(__file__).resolve().parent.parent
 DEFAULT_SCENARIOS = REPO_ROOT / "scenarios" / "rc1.yaml"
 NUM_JOINTS = 13
+GRAVITY_M_S2 = 9.81  # m/s^2, the normal force m g of Eqs. 4-5
 JOINT_LIMIT_DEG = 38.0
 FAILURE_MODES = ("free", "locked", "weak")
 

@@ -18,9 +18,7 @@ from typing import Callable, Dict, List, Optional
 
 import numpy as np
 
-from .config import NUM_JOINTS, Gait, JointGait, Rc1Error
-
-GRAVITY_M_S2 = 9.81
+from .config import GRAVITY_M_S2, NUM_JOINTS, Gait, JointGait, Rc1Error
 
 
 @dataclasses.dataclass(frozen=True)
@@ -198,6 +196,11 @@ def parameter_owner(key: str) -> Optional[Effect]:
     return next((e for e in LIBRARY.values() if any(p.key == key for p in e.parameters)), None)
 
 
+def parameter(key: str) -> Optional[EffectParameter]:
+    """The effect parameter with this key, or None."""
+    return next((p for e in LIBRARY.values() for p in e.parameters if p.key == key), None)
+
+
 def effect_values(effects: Dict[str, float], effect: Effect) -> Dict[str, float]:
     return {p.key: float(effects.get(p.key, p.default)) for p in effect.parameters}
 
@@ -210,11 +213,10 @@ def active(effects: Dict[str, float]) -> List[Effect]:
 def validate_effects(effects: Dict[str, float], *, where: str) -> None:
     """Rc1Error naming the first unknown key or out-of-range value."""
     for key, value in effects.items():
-        owner = parameter_owner(key)
-        if owner is None:
+        p = parameter(key)
+        if p is None:
             known = ", ".join(p.key for e in LIBRARY.values() for p in e.parameters)
             raise Rc1Error(f"{where}: effects.{key}: unknown effect parameter (known: {known})")
-        (p,) = [p for p in owner.parameters if p.key == key]
         if value is None or not math.isfinite(value) or not p.lower <= value <= p.upper:
             raise Rc1Error(f"{where}: effects.{key}: must be a number in [{p.lower:g}, {p.upper:g}], got {value}")
 
@@ -224,7 +226,7 @@ def parse_effect(text: str) -> tuple:
     name, sep, value = text.partition("=")
     effect = LIBRARY.get(name)
     key = effect.main.key if effect is not None else name
-    if parameter_owner(key) is None:
+    if parameter(key) is None:
         raise ValueError(f"unknown effect '{name}' (known: {', '.join(LIBRARY)}, or a parameter key)")
     if not sep:
         raise ValueError(f"effect '{name}' needs a value: {name}=VALUE")

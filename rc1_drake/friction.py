@@ -32,11 +32,9 @@ from __future__ import annotations
 import numpy as np
 from pydrake.systems.framework import BasicVector, LeafSystem
 
-from .config import NUM_JOINTS, Friction
+from .config import GRAVITY_M_S2, NUM_JOINTS, Friction
 from .kinematics import ChainGeometry, _wheel_kinematics, jit
 from .model import set_payload
-
-GRAVITY_M_S2 = 9.81
 
 
 @jit

@@ -44,10 +44,9 @@ def parameter_value(name: str, friction: Friction, effects=None) -> float:
     """A friction coefficient's, or an effect parameter's value (its default where `effects` leaves it out)."""
     if name in FRICTION_NAMES:
         return getattr(friction, name)
-    from .effects import parameter_owner
+    from .effects import parameter
 
-    (p,) = [p for p in parameter_owner(name).parameters if p.key == name]
-    return float((effects or {}).get(name, p.default))
+    return float((effects or {}).get(name, parameter(name).default))
 
 
 def with_values(friction: Friction, effects, values: Dict[str, float]) -> tuple:
@@ -71,14 +70,19 @@ DEFAULT_PARAMETERS = [
 _REPLAYERS: dict = {}  # per worker process: trial source -> Replayer (its Diagram and reference)
 
 
-def _replay(trial, friction: Friction, effects=None):
-    """Replay `trial`, reusing this process's Replayer for it."""
+def _replayer(trial):
+    """This process's Replayer of `trial` (built once: its Diagram, Simulator and reference)."""
     from .replay import Replayer
 
     key = str(trial.source or trial.trial_id)
     if key not in _REPLAYERS:
         _REPLAYERS[key] = Replayer(trial)
-    return _REPLAYERS[key].run(friction, effects)
+    return _REPLAYERS[key]
+
+
+def _replay(trial, friction: Friction, effects=None):
+    """Replay `trial`, reusing this process's Replayer for it."""
+    return _replayer(trial).run(friction, effects)
 
 
 def _map_trials(function, trials, friction, effects, executor) -> list:
@@ -299,12 +303,7 @@ def _replay_residual(trial, friction: Friction, effects=None) -> np.ndarray:
 
 def _input_noise_covariance(trial, friction: Friction, effects, samples: int, seed: int) -> np.ndarray:
     """Covariance of one trial's residuals over `samples` replays with resampled angle noise."""
-    from .replay import Replayer
-
-    key = str(trial.source or trial.trial_id)
-    if key not in _REPLAYERS:
-        _REPLAYERS[key] = Replayer(trial)
-    replayer, rng = _REPLAYERS[key], np.random.default_rng(seed)
+    replayer, rng = _replayer(trial), np.random.default_rng(seed)
     base = trial_residual(trial, replayer.run(friction, effects))
     draws = [trial_residual(trial, replayer.run_resampled(friction, effects, rng)) for _ in range(samples)]
     draws = np.array([d for d in draws if len(d) == len(base)])  # a replay that stopped elsewhere: left out
@@ -330,7 +329,8 @@ class CampaignResiduals:
                                         for p in parts])
         return np.concatenate(parts)
 
-    def input_noise(self, friction: Friction, effects=None, *, samples: int = 8, seed: int = 0) -> np.ndarray:
+    def input_noise(self, friction: Friction, effects=None, *, samples: int = INPUT_NOISE_SAMPLES,
+                    seed: int = 0) -> np.ndarray:
         """Block-diagonal covariance of the stacked residuals that the angle noise in the replays' input
         causes, from `samples` resampled replays per trial (plus one unperturbed)."""
         from scipy.linalg import block_diag
@@ -397,8 +397,8 @@ def uncertainty(residuals, friction: Friction, *, parameters=None, relative_step
     residual variance of each channel (_channel_variances), plus, with `input_noise_samples`, the
     covariance that the angle noise in the replays' input causes (CampaignResiduals.input_noise: that
     many more replays per trial; INPUT_NOISE_SAMPLES by default, 0 leaves it out and understates the
-    intervals several times over, README); a parameter is identifiable when its relative standard error is below `max_relative_error`. Costs
-    one residual evaluation per free parameter, plus one.
+    intervals several times over, README); a parameter is identifiable when its relative standard error
+    is below `max_relative_error`. Costs one residual evaluation per free parameter, plus one.
 
     The Jacobian is taken in the parameters' own units (forward differences of 5% of the value, at least
     0.5% of the bounds' range for a coefficient, 2% of the range for an effect parameter), not in their
@@ -436,7 +436,6 @@ def uncertainty(residuals, friction: Friction, *, parameters=None, relative_step
                        sensitivities=[float(np.linalg.norm(c)) * k for c, k in zip(columns, per_percent, strict=True)],
                        identifiable=identifiable, residual_rms=float(np.sqrt(np.mean(r0**2))),
                        simulations=getattr(residuals, "simulations", 0) - start_sims)
-
 
 
 @dataclasses.dataclass

@@ -96,10 +96,11 @@ class WhereItFails:
     def table(self) -> str:
         lines = [f"{'trial':<22}{'case':<10}{'Eq.6 %':>8}{'path rms cm':>12}{'grows cm/s':>11}{'>2 cm at s':>11}"
                  f"{'LB p':>8}  strongest feature"]
+        def cm(v, scale=100):
+            return "-" if v is None else f"{scale * v:.1f}"
+
         for r in self.trials:
             feature, (rr, p) = max(r.correlations.items(), key=lambda kv: abs(kv[1][0]))
-            def cm(v, scale=100):
-                return "-" if v is None else f"{scale * v:.1f}"
             lines.append(f"{r.trial_id:<22}{r.case:<10}{r.eq6_error_pct:8.1f}{cm(r.position_error_rms_m):>12}"
                          f"{cm(r.position_error_growth_m_s):>11}{cm(r.exceeds_2cm_at_s, 1):>11}{r.ljung_box_p:8.3f}"
                          f"  {feature} r={rr:+.2f} (p={p:.2g})")
