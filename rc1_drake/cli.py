@@ -133,7 +133,7 @@ def make_parser() -> argparse.ArgumentParser:
                      help="comma-separated held-out trial ids to score the result on (default: the trials not fitted)")
     idn.add_argument("--iterations", type=_positive_int, default=10, metavar="N",
                      help="AVS iterations, or the program fit's at most (default 10)")
-    idn.add_argument("--input-noise-samples", type=int, default=INPUT_NOISE_SAMPLES, metavar="K",
+    idn.add_argument("--input-noise-samples", type=_count, default=INPUT_NOISE_SAMPLES, metavar="K",
                      help="resampled replays per trial for the potentiometer noise the replays follow, in the "
                           f"screening and the reported intervals (default {INPUT_NOISE_SAMPLES}; 0 leaves it out: "
                           "intervals too narrow)")
@@ -176,14 +176,22 @@ def _joint_list(text: str) -> list:
     return sorted(set(joints))
 
 
-def _positive_int(text: str) -> int:
+def _whole_number(text: str, least: int) -> int:
     try:
         n = int(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"'{text}' is not a whole number") from None
-    if n < 1:
-        raise argparse.ArgumentTypeError(f"{n} must be at least 1")
+    if n < least:
+        raise argparse.ArgumentTypeError(f"{n} must be at least {least}")
     return n
+
+
+def _positive_int(text: str) -> int:
+    return _whole_number(text, 1)
+
+
+def _count(text: str) -> int:
+    return _whole_number(text, 0)
 
 
 def _effect(text: str) -> tuple[str, float]:
@@ -258,7 +266,7 @@ def cmd_synthesize(args) -> int:
     stop = None if args.time_limit_s is None else Stop(time_limit_s=args.time_limit_s)
     friction = validate_friction(dict(args.friction))
     effects = dict(args.effect)
-    validate(Scenario(effects=effects), where="command line")
+    validate(Scenario(effects=effects, stop=stop or Stop()), where="command line")
     campaign = synthesize_campaign(args.out, design=design, friction=friction, effects=effects,
                                    noise=Noise().scaled(args.noise_scale), camera=not args.no_camera, seed=args.seed,
                                    truth_file=args.truth, stop=stop)
