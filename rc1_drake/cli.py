@@ -11,7 +11,7 @@ import time
 from pathlib import Path
 
 from .config import (DEFAULT_SCENARIOS, FAILURE_MODES, FRICTION_NAMES, Failure, Friction, ModelFile, Rc1Error,
-                     Scenario, Stop, load_model_file, load_scenario, validate)
+                     Scenario, Stop, load_model_file, load_scenario, model_to_yaml, validate)
 from .identify import INPUT_NOISE_SAMPLES
 
 
@@ -142,12 +142,7 @@ def make_parser() -> argparse.ArgumentParser:
                           "stay at them) and effects, which stay fixed")
     idn.add_argument("--freeze", action="append", default=[], choices=FRICTION_NAMES, metavar="NAME",
                      help="keep a coefficient at its start value (repeatable)")
-    idn.add_argument("--json", type=Path, metavar="PATH")
-    idn.add_argument("--plots", type=Path, metavar="DIR")
-    idn.add_argument("--out", type=Path, metavar="MODEL.yaml",
-                     help="write a model file: the identified coefficients and the (fixed) effects")
-    idn.add_argument("--workers", type=_positive_int, metavar="N")
-    idn.add_argument("--scheduler", metavar="ADDRESS")
+    _add_outputs(idn, out_help="write a model file: the identified coefficients and the (fixed) effects")
 
     cmpn = sub.add_parser("compensate", help="bias, heading feedback and reverse driving for failed joints")
     cmpn.add_argument("--joints", type=_joint_list, default=list(range(1, 14)), metavar="LIST",
@@ -158,7 +153,45 @@ def make_parser() -> argparse.ArgumentParser:
     cmpn.add_argument("--scheduler", metavar="ADDRESS", help="a Dask scheduler")
 
     sub.add_parser("effects", help="list the candidate physical effects and their parameters")
+
+    dgn = sub.add_parser("diagnose", help="find the missing physics: fit, where it fails, rank candidate effects, "
+                                          "accept what holds on held-out trials, repeat")
+    dgn.add_argument("campaign", type=Path)
+    dgn.add_argument("--model-file", type=Path, metavar="MODEL.yaml",
+                     help="today's model (friction and effects; default: the paper's identified friction, no effect)")
+    dgn.add_argument("--candidates", type=_candidates, metavar="NAMES",
+                     help="comma-separated effect names to consider (default: the whole library, see rc1 effects)")
+    dgn.add_argument("--trials", metavar="IDS", help="comma-separated trial ids (default: all)")
+    dgn.add_argument("--freeze", action="append", default=[], choices=FRICTION_NAMES, metavar="NAME",
+                     help="keep a friction coefficient at the model's value (repeatable; saves its replays)")
+    dgn.add_argument("--rounds", type=_positive_int, default=3, metavar="N", help="effects to add at most (default 3)")
+    dgn.add_argument("--input-noise-samples", type=_positive_int, default=4, metavar="K",
+                     help="resampled replays per trial for the input-noise covariance (default 4; pooled per case)")
+    dgn.add_argument("--no-probe-study", action="store_true",
+                     help="do not simulate short probe trials to name the experiment that would see an effect "
+                          "not detectable here")
+    _add_outputs(dgn, out_help="write the diagnosed model (friction and accepted effects; default "
+                               "out/<campaign>.model.yaml)")
     return parser
+
+
+def _add_outputs(parser, *, out_help: str) -> None:
+    """The options that identify and diagnose share: where results go, and what runs them."""
+    parser.add_argument("--json", type=Path, metavar="PATH")
+    parser.add_argument("--plots", type=Path, metavar="DIR")
+    parser.add_argument("--out", type=Path, metavar="MODEL.yaml", help=out_help)
+    parser.add_argument("--workers", type=_positive_int, metavar="N", help="local processes (default: every core)")
+    parser.add_argument("--scheduler", metavar="ADDRESS", help="a Dask scheduler, e.g. tcp://10.0.0.5:8786")
+
+
+def _candidates(text: str) -> list:
+    from .effects import LIBRARY
+
+    names = [n.strip() for n in text.split(",") if n.strip()]
+    for n in names:
+        if n not in LIBRARY:
+            raise argparse.ArgumentTypeError(f"unknown effect '{n}' (known: {', '.join(LIBRARY)})")
+    return names
 
 
 def _joint_list(text: str) -> list:
@@ -333,6 +366,9 @@ def write_compare_plots(report, campaign, folder: Path) -> None:
 
     results = {r.trial_id: r for r in report.trials}
     for case, trials in campaign.cases().items():
+        trials = [t for t in trials if t.trial_id in report.runs]  # the trials the report replayed
+        if not trials:
+            continue
         name = case.replace("+", "_")
         runs = [report.runs[t.trial_id] for t in trials]
         figures = {
@@ -499,11 +535,75 @@ def cmd_effects(args) -> int:
     return 0
 
 
+def cmd_diagnose(args) -> int:
+    import matplotlib.pyplot as plt
+
+    from .diagnose import diagnose
+    from .measurements import load_campaign
+    from .plots import candidates_figure, waterfall_figure
+
+    campaign = load_campaign(args.campaign)
+    model = load_model_file(args.model_file) if args.model_file else ModelFile(friction=Friction())
+    trials = None if not args.trials else [t.strip() for t in args.trials.split(",") if t.strip()]
+    started = time.perf_counter()
+
+    def progress(text):
+        print(f"  [{time.perf_counter() - started:5.0f} s] {text}", file=sys.stderr, flush=True)
+
+    result = diagnose(campaign, friction=model.friction, effects=model.effects, candidates=args.candidates,
+                      trials=trials, held=args.freeze, workers=args.workers, scheduler=args.scheduler,
+                      input_noise_samples=args.input_noise_samples, max_rounds=args.rounds,
+                      probe_study=not args.no_probe_study, progress=progress)
+    print(f"Diagnosis of {campaign.path} ({len(result._trials)} trials; friction these data identify: "
+          f"{', '.join(result.free) or 'none'}, the others held):")
+    for k, r in enumerate(result.rounds):
+        print(f"\nround {k + 1}: candidates against {r.baseline.label} (held-out: leave one trial out; "
+              f"final-position misfit p = {r.misfit_p:.2g})")
+        print(r.table())
+    print("\nVisibility: the final head position's change (cm) per probe step of each candidate, per case:")
+    print(result.visibility_table())
+    print("\nError waterfall (Eq. 6 error and yaw-rate fit per case; held-out after the start):")
+    print(result.waterfall_table())
+    for d in result.not_detectable:
+        print(f"not detectable here: {d['name']}: {d['reason']}" + (f"; would be seen by {d['experiment']}"
+                                                                   if d.get("experiment") else ""))
+    for c in result.candidates:
+        if c.accepted and c.indistinguishable_from:
+            print(f"note: {c.name} cannot be told apart from {', '.join(c.indistinguishable_from)} by these trials"
+                  + (f"; {c.experiment}" if c.experiment else ""))
+    print(f"\nverdict: {result.verdict}: {result.explanation}")
+    out = args.out or Path("out") / f"{Path(campaign.path).name}.model.yaml"
+    _write_atomically(out, lambda p: p.write_text(model_to_yaml(
+        result.friction, result.effects, comment=f"rc1 diagnose {campaign.path}: {result.verdict}")))
+    print(f"model file: {out}  ({result.simulations} simulations, {result.wall_s:.0f} s)")
+    if args.json:
+        _write_atomically(args.json, lambda p: p.write_text(json.dumps(result.to_json(), indent=2, default=_jsonable)
+                                                            + "\n"))
+    if args.plots:
+        write_compare_plots(result.report, campaign, args.plots / "where_it_fails")
+        for name, fig in {"waterfall.png": waterfall_figure(result.waterfall),
+                          "candidates.png": candidates_figure(result.candidates)}.items():
+            _write_atomically(args.plots / name, lambda p, fig=fig: fig.savefig(p, format="png", dpi=110))
+            plt.close(fig)
+    return 0
+
+
+def _jsonable(value):
+    import numpy as np
+
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, (np.floating, np.integer)):
+        return value.item()
+    return str(value)
+
+
 def main(argv=None) -> int:
     args = make_parser().parse_args(argv)
     try:
         return {"run": cmd_run, "synthesize": cmd_synthesize, "compare": cmd_compare, "sweep": cmd_sweep,
-                "identify": cmd_identify, "compensate": cmd_compensate, "effects": cmd_effects}[args.command](args)
+                "identify": cmd_identify, "compensate": cmd_compensate, "effects": cmd_effects,
+                "diagnose": cmd_diagnose}[args.command](args)
     except Rc1Error as e:
         print(f"rc1 {args.command}: error: {e}", file=sys.stderr)
         return 2

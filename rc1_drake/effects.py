@@ -28,6 +28,11 @@ class EffectParameter:
     upper: float
     fitted: bool = True  # False: a setting the user chooses (which module, a reference speed), never fitted
     default: float = 0.0  # its value when the scenario leaves it out
+    probe: Optional[float] = None  # a small, clearly visible step for sensitivities (diagnose.py); None: 10% of the range
+
+    @property
+    def probe_step(self) -> float:
+        return self.probe if self.probe is not None else 0.1 * (self.upper - self.lower)
 
 
 @dataclasses.dataclass
@@ -70,12 +75,39 @@ class Effect:
     def fitted(self) -> List[EffectParameter]:
         return [p for p in self.parameters if p.fitted]
 
+    def coordinates(self, values: Dict[str, float]) -> Dict[str, float]:
+        """Coordinates in which the residuals change smoothly (and, near 0, linearly) with the effect; a
+        diagnosis fits these. By default the fitted parameters themselves."""
+        return {p.key: values[p.key] for p in self.fitted()}
+
+    def coordinate_space(self) -> List[EffectParameter]:
+        """The coordinates' bounds and probe steps (parameters named by coordinate)."""
+        return self.fitted()
+
+    def from_coordinates(self, coordinates: Dict[str, float]) -> Dict[str, float]:
+        """The effect parameter values for `coordinates`."""
+        return dict(coordinates)
+
 
 class GroundSlope(Effect):
     name = "ground_slope"
     summary = "a tilted floor: gravity pulls every module downhill, the normal forces fall by cos(slope)"
-    parameters = (EffectParameter("ground_slope_deg", 0.0, 20.0),
+    parameters = (EffectParameter("ground_slope_deg", 0.0, 20.0, probe=3.0),
                   EffectParameter("ground_slope_direction_deg", -180.0, 180.0))  # downhill, counter-clockwise from +x
+
+    # A diagnosis fits the tilt as a vector (downhill x and y components, degrees): at slope 0 the
+    # direction has no effect at all, and the residuals are smooth in the components.
+    def coordinates(self, values):
+        slope, heading = values["ground_slope_deg"], math.radians(values["ground_slope_direction_deg"])
+        return {"ground_slope_x_deg": slope * math.cos(heading), "ground_slope_y_deg": slope * math.sin(heading)}
+
+    def coordinate_space(self):
+        return [EffectParameter("ground_slope_x_deg", -20.0, 20.0, probe=3.0),
+                EffectParameter("ground_slope_y_deg", -20.0, 20.0, probe=3.0)]
+
+    def from_coordinates(self, coordinates):
+        x, y = coordinates["ground_slope_x_deg"], coordinates["ground_slope_y_deg"]
+        return {"ground_slope_deg": min(math.hypot(x, y), 20.0), "ground_slope_direction_deg": math.degrees(math.atan2(y, x))}
 
     def configure(self, setup, values):
         slope, heading = math.radians(values["ground_slope_deg"]), math.radians(values["ground_slope_direction_deg"])
@@ -86,7 +118,7 @@ class GroundSlope(Effect):
 class LateralFrictionAsymmetry(Effect):
     name = "lateral_friction_asymmetry"
     summary = "the lateral Coulomb coefficient is mu_lat (1 + a) sliding left, mu_lat (1 - a) sliding right"
-    parameters = (EffectParameter("lateral_friction_asymmetry", -0.9, 0.9),)
+    parameters = (EffectParameter("lateral_friction_asymmetry", -0.9, 0.9, probe=0.2),)
 
     def configure(self, setup, values):
         setup.lateral_asymmetry = values["lateral_friction_asymmetry"]
@@ -95,7 +127,7 @@ class LateralFrictionAsymmetry(Effect):
 class LongitudinalFrictionAsymmetry(Effect):
     name = "longitudinal_friction_asymmetry"
     summary = "rolling resistance mu_long (1 + a) rolling forward, mu_long (1 - a) rolling backward"
-    parameters = (EffectParameter("longitudinal_friction_asymmetry", -0.9, 0.9),)
+    parameters = (EffectParameter("longitudinal_friction_asymmetry", -0.9, 0.9, probe=0.2),)
 
     def configure(self, setup, values):
         setup.longitudinal_asymmetry = values["longitudinal_friction_asymmetry"]
@@ -104,7 +136,7 @@ class LongitudinalFrictionAsymmetry(Effect):
 class HeadDrag(Effect):
     name = "head_drag"
     summary = "the wheelless head slides on the floor: isotropic Coulomb friction mu m g at its centre"
-    parameters = (EffectParameter("head_drag_mu", 0.0, 2.0),)
+    parameters = (EffectParameter("head_drag_mu", 0.0, 2.0, probe=0.2),)
 
     def configure(self, setup, values):
         setup.head_mu = values["head_drag_mu"]
@@ -113,7 +145,7 @@ class HeadDrag(Effect):
 class JointCoulombFriction(Effect):
     name = "joint_coulomb_friction"
     summary = "dry friction torque in a failed (free) joint, beside its viscous c_joint"
-    parameters = (EffectParameter("joint_coulomb_Nm", 0.0, 1.0),)
+    parameters = (EffectParameter("joint_coulomb_Nm", 0.0, 1.0, probe=0.05),)
 
     def configure(self, setup, values):
         setup.joint_coulomb_Nm = values["joint_coulomb_Nm"]
@@ -122,7 +154,7 @@ class JointCoulombFriction(Effect):
 class StribeckFriction(Effect):
     name = "stribeck_friction"
     summary = "lateral breakaway friction: mu_lat (1 + r exp(-(v/v_s)^2)) at low slip speed"
-    parameters = (EffectParameter("stribeck_ratio", 0.0, 3.0),
+    parameters = (EffectParameter("stribeck_ratio", 0.0, 3.0, probe=0.5),
                   EffectParameter("stribeck_speed_m_s", 1e-3, 0.2, fitted=False, default=0.01))
 
     def configure(self, setup, values):
@@ -132,7 +164,7 @@ class StribeckFriction(Effect):
 class WheelToe(Effect):
     name = "wheel_toe"
     summary = "every wheel's rolling direction yawed counter-clockwise from its module's axis"
-    parameters = (EffectParameter("wheel_toe_deg", -10.0, 10.0),)
+    parameters = (EffectParameter("wheel_toe_deg", -10.0, 10.0, probe=1.0),)
 
     def configure(self, setup, values):
         setup.wheel_toe_rad = math.radians(values["wheel_toe_deg"])
@@ -141,7 +173,7 @@ class WheelToe(Effect):
 class ModulePayload(Effect):
     name = "module_payload"
     summary = "an extra mass at one module's centre: its inertia, and its wheel's normal force"
-    parameters = (EffectParameter("payload_kg", 0.0, 2.0),
+    parameters = (EffectParameter("payload_kg", 0.0, 2.0, probe=0.3),
                   EffectParameter("payload_module", 1, 14, fitted=False, default=7))
 
     def configure(self, setup, values):
@@ -154,7 +186,7 @@ class ModulePayload(Effect):
 class ServoLag(Effect):
     name = "servo_lag"
     summary = "a first-order servo response of time constant tau to the gait command"
-    parameters = (EffectParameter("servo_lag_s", 0.0, 0.5),)
+    parameters = (EffectParameter("servo_lag_s", 0.0, 0.5, probe=0.05),)
     seen_in_replay = False  # replays drive the joints by their measured angles
 
     def gait(self, gait, values):

@@ -145,3 +145,35 @@ def paths_grid_figure(rows, *, line_x_m=3.18):
     fig.supylabel("y (m)")
     fig.tight_layout()
     return fig
+
+
+def waterfall_figure(waterfall):
+    """The error waterfall: mean held-out Eq. 6 error per case after each step of the diagnosis."""
+    cases = list(waterfall[0]["cases"])
+    fig, ax = plt.subplots(figsize=(max(6, 1.6 * len(cases) + 2), 4))
+    width = 0.8 / len(waterfall)
+    for k, step in enumerate(waterfall):
+        x = np.arange(len(cases)) + (k - (len(waterfall) - 1) / 2) * width
+        ax.bar(x, [step["cases"][c]["mean_eq6_error_pct"] for c in cases], width, label=step["model"])
+    ax.set_xticks(np.arange(len(cases)), cases)
+    ax.set_ylabel("mean Eq. 6 error (%)")
+    ax.set_title("error waterfall (held-out trials after the start)")
+    ax.grid(True, axis="y", alpha=0.3)
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    return fig
+
+
+def candidates_figure(candidates):
+    """Each candidate's held-out error reduction, coloured by its status."""
+    colours = {"accepted": "tab:green", "not significant": "tab:gray", "not detectable here": "lightgray"}
+    fig, ax = plt.subplots(figsize=(7, 0.4 * len(candidates) + 1.2))
+    y = np.arange(len(candidates))[::-1]
+    ax.barh(y, [100 * c.held_out_reduction for c in candidates],
+            color=[colours.get(c.status, "tab:orange") for c in candidates])
+    ax.set_yticks(y, [f"{c.name} ({c.status})" for c in candidates], fontsize=7)
+    ax.axvline(0, color="k", lw=0.5)
+    ax.set_xlabel("held-out error reduction (%), linear leave-one-trial-out")
+    ax.grid(True, axis="x", alpha=0.3)
+    fig.tight_layout()
+    return fig

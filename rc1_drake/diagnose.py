@@ -1,0 +1,758 @@
+"""Find the missing physics (issue 6): fit today's model, see where it fails, rank the candidate effects
+(effects.py) on held-out trials, accept one only when it is significant and holds on trials it was not
+fitted to, add it, and repeat until nothing more is found; the waterfall shows what each step bought.
+
+The method, linearized where that is safe and checked by simulation where it decides:
+
+1. Linearize. At the current model, the stacked standardized residuals r0 of every trial's replay
+   (identify.trial_residual: final position, camera path or yaw rate) and their Jacobian by forward
+   differences: one column per friction coefficient, one per candidate coordinate at its probe step
+   (a small, clearly visible strength: EffectParameter.probe). The covariance that the potentiometer
+   noise in the replays' input causes is taken once (identify._input_noise_covariance).
+2. Fit. For today's model (the friction coefficients these data identify, identify.screen's rule) and
+   for it plus each candidate: the bounded least squares of r0 + J d (a Drake MathematicalProgram), the
+   parameters' sandwich covariance with the input noise, their Wald test against 0 (the nested value),
+   the leave-one-trial-out held-out error of the linear model, and AIC.
+3. Decide. The candidate with the largest held-out reduction among the significant ones is checked by
+   simulation: every trial replayed with the parameters fitted without it, for today's model and for the
+   candidate. It is accepted only when it is significant (Wald p below P_ACCEPT) and the simulated
+   held-out error falls by MIN_HELD_OUT_REDUCTION at least. Candidates whose columns, after the
+   friction's are projected out, are nearly parallel (cosine above INDISTINGUISHABLE_COS) cannot be
+   told apart by these data; an effect whose largest physical value would not be significant here is
+   "not detectable here", and the probe study (probe_visibility) names the kind of trial that would see it.
+4. Repeat at the new model: its residuals are simulated again; the Jacobian's columns are reused (a
+   chord method: the sensitivities barely move when a small effect is added, the residuals do).
+
+The verdict: `effect_found` when effects were accepted and what is left is consistent with the noise
+(the final positions' chi-squared with the hand and input noise); `no_missing_effect` when nothing was
+accepted and the misfit is consistent with the noise; `unexplained` when a misfit remains that no
+candidate explains (any accepted effects are then reported as partial).
+"""
+
+import dataclasses
+import math
+import os
+import time
+from typing import Callable, Dict, List, Optional
+
+import numpy as np
+
+from . import identify as idf
+from .config import FRICTION_NAMES, Friction
+from .effects import LIBRARY, effect_values
+
+P_ACCEPT = 2.7e-3  # Wald test of a candidate's parameters against 0: |z| > 3 for one parameter
+MIN_HELD_OUT_REDUCTION = 0.10  # the simulated held-out error must fall by at least this fraction
+INDISTINGUISHABLE_COS = 0.95
+P_MISFIT = 1e-3  # the final positions' misfit is "consistent with the noise" above this p-value
+MAX_ROUNDS = 3
+TRUST_STEPS = 4.0  # an effect coordinate's linear fit moves at most this many probe steps per round
+INPUT_NOISE_SAMPLES = 4  # resampled replays per trial for the input-noise covariance (pooled per case)
+FINAL_SIGMA_M = idf.RESIDUAL_SIGMAS["final_m"]
+
+
+@dataclasses.dataclass
+class Coordinate:
+    """A direction of the linearization: a friction coefficient or one coordinate of an effect."""
+
+    name: str
+    owner: str  # "friction" or the effect's name
+    value: float
+    lower: float
+    upper: float
+    step: float
+
+
+def friction_coordinates(friction: Friction, held=()) -> List[Coordinate]:
+    out = []
+    for p in [p for p in idf.DEFAULT_PARAMETERS if p.name not in held]:
+        value, span = getattr(friction, p.name), p.upper - p.lower
+        out.append(Coordinate(p.name, "friction", value, p.lower, p.upper, max(0.05 * abs(value), 0.005 * span)))
+    return out
+
+
+def effect_coordinates(name: str, effects: Dict[str, float]) -> List[Coordinate]:
+    effect = LIBRARY[name]
+    values = effect.coordinates(effect_values(effects, effect))
+    return [Coordinate(p.key, name, float(values[p.key]), p.lower, p.upper, p.probe_step)
+            for p in effect.coordinate_space()]
+
+
+def model_at(friction: Friction, effects: Dict[str, float], coordinates: List[Coordinate], values) -> tuple:
+    """(friction, effects) with the coordinates set to `values` (effects written back through their classes)."""
+    friction = dataclasses.replace(friction, **{c.name: float(v) for c, v in zip(coordinates, values, strict=True)
+                                                if c.owner == "friction"})
+    effects = dict(effects)
+    for owner in dict.fromkeys(c.owner for c in coordinates if c.owner != "friction"):
+        effect = LIBRARY[owner]
+        current = effect.coordinates(effect_values(effects, effect))
+        current.update({c.name: float(v) for c, v in zip(coordinates, values, strict=True) if c.owner == owner})
+        effects.update(effect.from_coordinates(current))
+    return friction, effects
+
+
+# ---------------------------------------------------------------------------------------------- simulation
+
+def _evaluate(trial, friction, effects) -> tuple:
+    """One replay, scored: (standardized residuals, Eq. 6 error %, yaw-rate fit %)."""
+    from .compare import fit_percent, simulator_error
+
+    run = idf._replay(trial, friction, effects)
+    t = trial.t - trial.t[0]
+    inside = t <= run.t[-1] + 1e-9
+    fit = fit_percent(trial.head_yaw_rate[inside], np.interp(t[inside], run.t, run.head_yaw_rate))
+    return (idf.trial_residual(trial, run), simulator_error(run.head_xy[-1], trial.final_head_xy,
+                                                            trial.initial_head_pose[:2]), fit)
+
+
+def _replay_and_score(trial, friction, effects) -> tuple:
+    from .compare import score_trial
+
+    run = idf._replay(trial, friction, effects)
+    return score_trial(trial, run), run
+
+
+class Evaluator:
+    """Runs batches of (trial, friction, effects) replays on an executor, counting them."""
+
+    def __init__(self, executor, progress: Optional[Callable[[str], None]] = None):
+        self.executor, self.progress, self.simulations = executor, progress, 0
+
+    def map(self, function, jobs, what: str) -> list:
+        if self.progress:
+            self.progress(f"{what}: {len(jobs)} replays")
+        self.simulations += len(jobs)
+        if self.executor is None:
+            return [function(*job) for job in jobs]
+        return [f.result() for f in [self.executor.submit(function, *job) for job in jobs]]
+
+
+# --------------------------------------------------------------------------------------------- linear algebra
+
+@dataclasses.dataclass
+class Linearization:
+    trials: list
+    friction: Friction
+    effects: Dict[str, float]
+    coordinates: List[Coordinate]  # every column's coordinate
+    r0: List[np.ndarray]  # per trial, at (friction, effects)
+    eq6: List[float]  # per trial, at (friction, effects)
+    yaw_fit: List[float]
+    columns: Dict[str, List[np.ndarray]]  # coordinate name -> per-trial d r / d coordinate
+    noise: List[np.ndarray]  # per trial: input-noise covariance of its residuals
+
+    def rows(self, names, trials) -> tuple:
+        """(X, r0, channels, per-trial row counts) over the `trials` indices."""
+        x = np.vstack([np.column_stack([self.columns[n][k] for n in names]) if names else
+                       np.zeros((len(self.r0[k]), 0)) for k in trials])
+        r = np.concatenate([self.r0[k] for k in trials])
+        channels = np.concatenate([np.r_[idf.FINAL_CHANNEL, idf.FINAL_CHANNEL,
+                                         np.full(len(self.r0[k]) - 2, idf.PATH_CHANNEL)] for k in trials])
+        return x, r, channels, [len(self.r0[k]) for k in trials]
+
+    def coordinate(self, name) -> Coordinate:
+        return next(c for c in self.coordinates if c.name == name)
+
+
+def bounded_least_squares(x, r, lower, upper) -> np.ndarray:
+    """argmin |r + x d|^2 subject to lower <= d <= upper, as a Drake MathematicalProgram (columns scaled
+    to unit norm; a column that never changes the residuals stays at 0)."""
+    d = np.zeros(x.shape[1])
+    norm = np.linalg.norm(x, axis=0)
+    seen = norm > 1e-12
+    if not seen.any():
+        return d
+    scaled = x[:, seen] / norm[seen]
+    d[seen] = idf._bounded_step(scaled, r, 1e-10, lower[seen] * norm[seen], upper[seen] * norm[seen]) / norm[seen]
+    return d
+
+
+@dataclasses.dataclass
+class Fit:
+    names: List[str]
+    values: np.ndarray  # coordinate values at the fit
+    steps: np.ndarray  # d from the linearization point
+    standard_errors: np.ndarray
+    covariance: np.ndarray
+    residual: List[np.ndarray]  # per trial, r0 + X d (linear prediction, all trials)
+    held_out: List[np.ndarray]  # per trial, the prediction from the fit without that trial
+    held_out_steps: List[np.ndarray]  # per trial, d fitted without it
+    aic: float
+
+    def held_out_sum_of_squares(self) -> float:
+        return float(sum(float(h @ h) for h in self.held_out))
+
+
+def fit(lin: Linearization, names: List[str]) -> Fit:
+    """Bounded linear least squares over `names`, its sandwich covariance (channel variances and input
+    noise), and leave-one-trial-out predictions."""
+    coords = [lin.coordinate(n) for n in names]
+    reach = np.array([math.inf if c.owner == "friction" else TRUST_STEPS * c.step for c in coords])
+    lower = np.maximum(np.array([c.lower - c.value for c in coords]), -reach)
+    upper = np.minimum(np.array([c.upper - c.value for c in coords]), reach)
+    everything = list(range(len(lin.trials)))
+    x, r, channels, counts = lin.rows(names, everything)
+    d = bounded_least_squares(x, r, lower, upper)
+    e = r + x @ d
+    variance = idf._channel_variances(e, channels, len(names))
+    xtx = x.T @ x
+    inv = np.linalg.pinv(xtx) if len(names) else np.zeros((0, 0))
+    middle = np.zeros_like(xtx)
+    start = 0
+    for k, n in enumerate(counts):
+        xk = x[start:start + n]
+        middle += xk.T @ (np.diag(variance[start:start + n]) + lin.noise[k]) @ xk
+        start += n
+    cov = inv @ middle @ inv
+    se = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    per_trial = np.split(e, np.cumsum(counts)[:-1])
+    held, held_steps = [], []
+    for k in everything:
+        rest = [j for j in everything if j != k]
+        if not rest:
+            held.append(lin.r0[k].copy())
+            held_steps.append(np.zeros(len(names)))
+            continue
+        xr, rr, _, _ = lin.rows(names, rest)
+        dk = bounded_least_squares(xr, rr, lower, upper)
+        xk, _, _, _ = lin.rows(names, [k])
+        held.append(lin.r0[k] + xk @ dk)
+        held_steps.append(dk)
+    m = len(e)
+    aic = m * math.log(max(float(e @ e), 1e-300) / m) + 2 * len(names)
+    return Fit(names=list(names), values=np.array([c.value for c in coords]) + d, steps=d, standard_errors=se,
+               covariance=cov, residual=per_trial, held_out=held, held_out_steps=held_steps, aic=aic)
+
+
+def wald_p(fitted: Fit, names: List[str]) -> float:
+    """p-value of the Wald test that the coordinates `names` are 0 (chi-squared, one dof per coordinate)."""
+    from scipy.stats import chi2
+
+    idx = [fitted.names.index(n) for n in names]
+    value = fitted.values[idx]
+    cov = fitted.covariance[np.ix_(idx, idx)]
+    stat = float(value @ np.linalg.pinv(cov) @ value) if np.any(np.diag(cov) > 0) else 0.0
+    return float(chi2.sf(stat, len(idx)))
+
+
+def final_misfit(lin: Linearization, residual: List[np.ndarray], free: int) -> tuple:
+    """(chi-squared, dof, p) of the final positions against the hand noise (RESIDUAL_SIGMAS, 1 in
+    standardized units) plus the input noise, pooled per case: the four resampled replays of one trial
+    estimate a variance too loosely."""
+    from scipy.stats import chi2
+
+    pooled: Dict[str, list] = {}
+    for trial, noise in zip(lin.trials, lin.noise, strict=True):
+        pooled.setdefault(trial.case, []).append(np.diag(noise)[:2])
+    variance = {case: 1.0 + float(np.mean(v)) for case, v in pooled.items()}
+    stat = float(sum(float(r[:2] @ r[:2]) / variance[t.case] for t, r in zip(lin.trials, residual, strict=True)))
+    dof = max(2 * len(lin.trials) - free, 1)
+    return stat, dof, float(chi2.sf(stat, dof))
+
+
+def _orthogonal_to(x, basis) -> np.ndarray:
+    if basis.shape[1] == 0:
+        return x
+    q, _ = np.linalg.qr(basis)
+    return x - q @ (q.T @ x)
+
+
+def subspace_cosine(a, b) -> float:
+    """Cosine of the smallest angle between the column spaces of a and b."""
+    qa, _ = np.linalg.qr(a)
+    qb, _ = np.linalg.qr(b)
+    return float(np.linalg.svd(qa.T @ qb, compute_uv=False).max())
+
+
+# ------------------------------------------------------------------------------------------------ reports
+
+@dataclasses.dataclass
+class CandidateResult:
+    name: str
+    parameters: Dict[str, float]  # the effect's parameters at the fit
+    coordinates: Dict[str, List[float]]  # coordinate -> [value, standard error]
+    interval95: Dict[str, List[float]]
+    wald_p: float
+    held_out_before: float  # RMS of the standardized held-out residuals, today's model (linear prediction)
+    held_out_after: float
+    held_out_reduction: float  # 1 - (after / before)^2: the fraction of the held-out sum of squares removed
+    aic_delta: float
+    score: float  # the held-out reduction: the ranking
+    status: str  # accepted | not significant | no held-out gain | not detectable here | ...
+    accepted: bool = False
+    detectable_strength: Dict[str, float] = dataclasses.field(default_factory=dict)  # 3 standard errors
+    indistinguishable_from: List[str] = dataclasses.field(default_factory=list)
+    visibility: Dict[str, Dict[str, float]] = dataclasses.field(default_factory=dict)  # case -> channel -> per unit
+    simulated: Optional[dict] = None  # the check by simulation, when it was made
+    experiment: Optional[str] = None  # the kind of trial that would see it / tell it apart
+
+
+@dataclasses.dataclass
+class HeldOutScore:
+    """Per-trial scores of a model (a replay per trial, each with the parameters fitted without it)."""
+
+    label: str
+    effects: Dict[str, float]
+    sum_of_squares: float
+    eq6_pct: Dict[str, float]  # trial -> Eq. 6 error
+    yaw_fit_pct: Dict[str, float]
+
+    def by_case(self, trials) -> Dict[str, dict]:
+        out: Dict[str, dict] = {}
+        for t in trials:
+            out.setdefault(t.case, {"eq6": [], "fit": []})
+            out[t.case]["eq6"].append(self.eq6_pct[t.trial_id])
+            out[t.case]["fit"].append(self.yaw_fit_pct[t.trial_id])
+        return {c: {"mean_eq6_error_pct": float(np.mean(v["eq6"])), "mean_yaw_rate_fit_pct": float(np.mean(v["fit"]))}
+                for c, v in out.items()}
+
+    def mean_eq6(self) -> float:
+        return float(np.mean(list(self.eq6_pct.values())))
+
+
+@dataclasses.dataclass
+class Round:
+    friction: Friction
+    effects: Dict[str, float]
+    baseline: HeldOutScore
+    candidates: List[CandidateResult]  # ranked, best first
+    accepted: Optional[str]
+    misfit_p: float  # today's model's final-position misfit against the noise
+
+    def table(self) -> str:
+        lines = [f"{'candidate':<32}{'fitted (95% interval)':<44}{'held-out rms':>14}{'gain':>6}{'Wald p':>9}"
+                 f"{'dAIC':>7}  status"]
+        for c in self.candidates:
+            fitted = ", ".join(f"{k}={v:.3g}+-{1.96 * se:.2g}" for k, (v, se) in c.coordinates.items())
+            lines.append(f"{c.name:<32}{fitted:<44}{c.held_out_before:>6.2f}->{c.held_out_after:<6.2f}"
+                         f"{100 * c.held_out_reduction:>5.0f}%{c.wald_p:>9.2g}{c.aic_delta:>7.0f}  {c.status}")
+        return "\n".join(lines)
+
+
+@dataclasses.dataclass
+class Diagnosis:
+    campaign: str
+    start_friction: Friction
+    start_effects: Dict[str, float]
+    free: List[str]  # friction coefficients these data identify (the others stay at their start values)
+    rounds: List[Round]
+    waterfall: List[dict]
+    friction: Friction  # the final model
+    effects: Dict[str, float]
+    accepted: List[str]
+    verdict: str
+    explanation: str
+    misfit_p: float  # the final model's
+    not_detectable: List[dict]
+    where_it_fails: Optional[dict]
+    simulations: int
+    wall_s: float
+    _trials: list = dataclasses.field(default_factory=list, repr=False)
+    report: object = dataclasses.field(default=None, repr=False)  # compare.CampaignReport of the final model (plots)
+
+    @property
+    def candidates(self) -> List[CandidateResult]:
+        return self.rounds[0].candidates if self.rounds else []
+
+    def to_json(self) -> dict:
+        return {
+            "campaign": self.campaign, "verdict": self.verdict, "explanation": self.explanation,
+            "start_model": {"friction": dataclasses.asdict(self.start_friction), "effects": self.start_effects},
+            "free_friction": self.free,
+            "baseline_error": {"held_out_mean_eq6_pct": self.rounds[0].baseline.mean_eq6(),
+                               "cases": self.rounds[0].baseline.by_case(self._trials)} if self.rounds else None,
+            "candidates": [dataclasses.asdict(c) for c in self.candidates],
+            "rounds": [{"effects": r.effects, "accepted": r.accepted, "misfit_p": r.misfit_p,
+                        "candidates": [dataclasses.asdict(c) for c in r.candidates]} for r in self.rounds],
+            "accepted_effects": self.accepted,
+            "model": {"friction": dataclasses.asdict(self.friction), "effects": self.effects},
+            "error_after": self.waterfall[-1] if self.waterfall else None,
+            "waterfall": self.waterfall, "misfit_p": self.misfit_p, "not_detectable": self.not_detectable,
+            "where_it_fails": self.where_it_fails, "simulations": self.simulations, "wall_s": self.wall_s,
+        }
+
+    def visibility_table(self) -> str:
+        """Per candidate coordinate and case: the final position's change (cm) per probe step."""
+        cases = list(dict.fromkeys(t.case for t in self._trials))
+        lines = [f"{'coordinate (probe step)':<44}" + "".join(f"{c:>10}" for c in cases)]
+        for c in self.candidates:
+            keys = [k for k in next(iter(c.visibility.values()), {}) if "final position" in k]
+            for k in keys:
+                name = k.split(":")[0] + f" ({k.rsplit(' per ', 1)[1]})"
+                lines.append(f"{name:<44}" + "".join(f"{c.visibility[case][k]:>10.2f}" for case in cases))
+        return "\n".join(lines)
+
+    def waterfall_table(self) -> str:
+        cases = list(self.waterfall[0]["cases"]) if self.waterfall else []
+        lines = [f"{'model':<38}" + "".join(f"{c:>16}" for c in cases) + f"{'all trials':>12}"]
+        for step in self.waterfall:
+            cells = "".join(f"{step['cases'][c]['mean_eq6_error_pct']:>8.2f}% {step['cases'][c]['mean_yaw_rate_fit_pct']:>5.0f}%"
+                            for c in cases)
+            lines.append(f"{step['model']:<38}{cells}{step['mean_eq6_error_pct']:>11.2f}%")
+        return "\n".join(lines)
+
+
+def _rms(residuals: List[np.ndarray]) -> float:
+    return float(math.sqrt(sum(float(r @ r) for r in residuals) / sum(len(r) for r in residuals)))
+
+
+# ------------------------------------------------------------------------------------------------ the loop
+
+def linearize(trials, friction, effects, candidates: List[str], evaluator: Evaluator, *, noise=None,
+              input_noise_samples=INPUT_NOISE_SAMPLES, held=()) -> Linearization:
+    """Residuals at (friction, effects) and their forward-difference columns for the friction
+    coefficients, the model's own effects and the candidates; the input noise when `noise` is None."""
+    coords = friction_coordinates(friction, held)
+    for name in list(dict.fromkeys([*(e.name for e in _active(effects)), *candidates])):
+        coords += effect_coordinates(name, effects)
+    jobs, models = [], [(friction, effects)]
+    for c in coords:
+        values = [c2.value + (_signed_step(c) if c2 is c else 0.0) for c2 in coords]
+        models.append(model_at(friction, effects, coords, values))
+    for model in models:
+        jobs += [(t, *model) for t in trials]
+    noise_jobs = [] if noise is not None else [(t, friction, effects, input_noise_samples, k)
+                                                for k, t in enumerate(trials)]
+    outputs = evaluator.map(_evaluate, jobs, f"linearizing at the model ({len(coords)} directions)")
+    if noise is None:
+        noise = evaluator.map(idf._input_noise_covariance, noise_jobs, "input noise")
+        evaluator.simulations += len(noise_jobs) * input_noise_samples
+    n = len(trials)
+    base = outputs[:n]
+    columns = {}
+    for j, c in enumerate(coords):
+        out = outputs[(j + 1) * n:(j + 2) * n]
+        columns[c.name] = [(o[0] - b[0]) / _signed_step(c) if len(o[0]) == len(b[0]) else np.zeros(len(b[0]))
+                           for o, b in zip(out, base, strict=True)]
+    return Linearization(trials=list(trials), friction=friction, effects=dict(effects), coordinates=coords,
+                         r0=[b[0] for b in base], eq6=[b[1] for b in base], yaw_fit=[b[2] for b in base],
+                         columns=columns, noise=list(noise))
+
+
+def _signed_step(c: Coordinate) -> float:
+    return c.step if c.value + c.step <= c.upper else -c.step
+
+
+def _active(effects):
+    from .effects import active
+
+    return active(effects)
+
+
+def held_out_by_simulation(lin: Linearization, fitted: Fit, evaluator: Evaluator, label: str) -> HeldOutScore:
+    """Every trial replayed with the parameters fitted without it."""
+    coords = [lin.coordinate(n) for n in fitted.names]
+    jobs = []
+    for k, trial in enumerate(lin.trials):
+        values = [c.value + d for c, d in zip(coords, fitted.held_out_steps[k], strict=True)]
+        jobs.append((trial, *model_at(lin.friction, lin.effects, coords, values)))
+    out = evaluator.map(_evaluate, jobs, f"held-out replays: {label}")
+    ids = [t.trial_id for t in lin.trials]
+    _, effects = model_at(lin.friction, lin.effects, coords, fitted.values)
+    return HeldOutScore(label=label, effects=effects, sum_of_squares=float(sum(float(o[0] @ o[0]) for o in out)),
+                        eq6_pct=dict(zip(ids, [o[1] for o in out], strict=True)),
+                        yaw_fit_pct=dict(zip(ids, [o[2] for o in out], strict=True)))
+
+
+def screen_friction(lin: Linearization, names=FRICTION_NAMES, max_relative_error=0.3) -> List[str]:
+    """The friction coefficients these data identify (identify.screen's rule: standard error below 30%)."""
+    if not names:
+        return []
+    fitted = fit(lin, list(names))
+    return [n for n, v, se in zip(fitted.names, fitted.values, fitted.standard_errors, strict=True)
+            if se < max_relative_error * abs(v)]
+
+
+def _visibility(lin: Linearization, name: str) -> Dict[str, Dict[str, float]]:
+    """Per case: how much the final position (cm) and the path or yaw-rate channel (standardized RMS)
+    change per probe step of each of the candidate's coordinates, averaged over the case's trials."""
+    out: Dict[str, Dict[str, float]] = {}
+    for c in [c for c in lin.coordinates if c.owner == name]:
+        for case in dict.fromkeys(t.case for t in lin.trials):
+            ks = [k for k, t in enumerate(lin.trials) if t.case == case]
+            cols = [lin.columns[c.name][k] * c.step for k in ks]
+            row = out.setdefault(case, {})
+            row[f"{c.name}: final position cm per {c.step:g}"] = float(
+                np.mean([100 * FINAL_SIGMA_M * np.linalg.norm(col[:2]) for col in cols]))
+            row[f"{c.name}: path rms (standardized) per {c.step:g}"] = float(
+                np.mean([np.sqrt(np.mean(col[2:] ** 2)) if len(col) > 2 else 0.0 for col in cols]))
+    return out
+
+
+def diagnose(campaign, *, friction: Optional[Friction] = None, effects=None, candidates=None, trials=None,
+             held=(), workers=None, scheduler=None, input_noise_samples=INPUT_NOISE_SAMPLES, max_rounds=MAX_ROUNDS,
+             probe_study=True, progress=None) -> Diagnosis:
+    """The loop of the module docstring on `campaign` (its `trials`, all by default), from the model
+    (`friction`, `effects`); `candidates` are effect names (the library's, by default); the friction
+    coefficients named in `held` stay at their values (no replays spent on them)."""
+    from .executor import make_executor
+
+    started = time.perf_counter()
+    friction = friction or Friction()
+    chosen = idf.choose_trials(campaign, trials)
+    effects = dict(effects or {})
+    names = list(candidates or LIBRARY)
+    not_detectable = []
+    for n in names:
+        if not LIBRARY[n].seen_in_replay:
+            not_detectable.append({"name": n, "reason": "replays follow the measured joint angles, which already "
+                                   "contain it", "experiment": "runs driven by the gait command (rc1 run), compared "
+                                   "with the measured joint angles: the servo channel"})
+    replayed = [n for n in names if LIBRARY[n].seen_in_replay and n not in _names(_active(effects))]
+    with make_executor(workers=workers or min(os.cpu_count() or 1, len(chosen)), scheduler=scheduler) as executor:
+        evaluator = Evaluator(executor, progress)
+        lin = linearize(chosen, friction, effects, replayed, evaluator, input_noise_samples=input_noise_samples,
+                        held=held)
+        free = screen_friction(lin, [n for n in FRICTION_NAMES if n not in held])
+        start_step = {"model": "start (no refit)", "effects": dict(effects),
+                      "mean_eq6_error_pct": float(np.mean(lin.eq6)),
+                      "cases": _cases(chosen, lin.eq6, lin.yaw_fit)}
+        rounds, accepted, waterfall = [], [], [start_step]
+        model_names = list(free)
+        for round_index in range(max_rounds):
+            base_fit = fit(lin, model_names)
+            label = "today's model, friction refitted" if not accepted else "+ " + " + ".join(accepted)
+            baseline = held_out_by_simulation(lin, base_fit, evaluator, label)
+            if round_index == 0:
+                waterfall.append(_step(label, baseline, chosen))
+            misfit_p = final_misfit(lin, base_fit.residual, len(model_names))[2]
+            results = _rank(lin, base_fit, model_names, [n for n in replayed if n not in accepted])
+            winner = None
+            for c in [c for c in results if c.status == "candidate"][:2]:
+                cand_names = model_names + [co.name for co in lin.coordinates if co.owner == c.name]
+                check = held_out_by_simulation(lin, fit(lin, cand_names), evaluator, f"{label} + {c.name}")
+                reduction = 1.0 - check.sum_of_squares / baseline.sum_of_squares
+                c.simulated = {"held_out_sum_of_squares_before": baseline.sum_of_squares,
+                               "held_out_sum_of_squares_after": check.sum_of_squares,
+                               "held_out_reduction": reduction,
+                               "held_out_mean_eq6_pct_before": baseline.mean_eq6(),
+                               "held_out_mean_eq6_pct_after": check.mean_eq6()}
+                if reduction >= MIN_HELD_OUT_REDUCTION:
+                    c.status, c.accepted, winner = "accepted", True, (c, check)
+                    break
+                c.status = "no held-out gain when simulated"
+            for c in results:
+                if c.status == "candidate":
+                    c.status = "significant, not checked (a better candidate was)"
+            rounds.append(Round(friction=lin.friction, effects=dict(lin.effects), baseline=baseline, candidates=results,
+                                accepted=winner[0].name if winner else None, misfit_p=misfit_p))
+            if winner is None:
+                break
+            c, check = winner
+            accepted.append(c.name)
+            waterfall.append(_step("+ " + " + ".join(accepted) + " (held out)", check, chosen))
+            cand_names = model_names + [co.name for co in lin.coordinates if co.owner == c.name]
+            new_friction, new_effects = model_at(lin.friction, lin.effects, [lin.coordinate(n) for n in cand_names],
+                                                 fit(lin, cand_names).values)
+            lin = _relinearize(lin, new_friction, new_effects, evaluator)
+            model_names = cand_names
+        final_fit = fit(lin, model_names)
+        friction_out, effects_out = model_at(lin.friction, lin.effects, [lin.coordinate(n) for n in model_names],
+                                             final_fit.values)
+        report, where = _where_it_fails(campaign, chosen, friction_out, effects_out, evaluator)
+        simulated = [idf.trial_residual(t, report.runs[t.trial_id]) for t in chosen]
+        misfit_p = final_misfit(lin, simulated, len(model_names))[2]  # the final model's replays, not the linear guess
+    for r in rounds:
+        for c in r.candidates:
+            if c.status == "not detectable here" and c.name not in [d["name"] for d in not_detectable]:
+                not_detectable.append({"name": c.name, "reason": "its largest physical value would not be "
+                                       "significant on these trials", "experiment": c.experiment})
+    if probe_study:
+        _suggest_experiments(rounds, not_detectable, friction_out, effects_out, workers, progress)
+    verdict, explanation = _verdict(accepted, misfit_p, rounds)
+    return Diagnosis(campaign=str(campaign.path), start_friction=friction, start_effects=dict(effects or {}),
+                     free=free, rounds=rounds, waterfall=waterfall, friction=friction_out, effects=effects_out,
+                     accepted=accepted, verdict=verdict, explanation=explanation, misfit_p=misfit_p,
+                     not_detectable=not_detectable, where_it_fails=where, simulations=evaluator.simulations,
+                     wall_s=time.perf_counter() - started, _trials=chosen, report=report)
+
+
+def _names(effects) -> List[str]:
+    return [e.name for e in effects]
+
+
+def _cases(trials, eq6, fit_pct) -> Dict[str, dict]:
+    out: Dict[str, list] = {}
+    for t, e, f in zip(trials, eq6, fit_pct, strict=True):
+        out.setdefault(t.case, []).append((e, f))
+    return {c: {"mean_eq6_error_pct": float(np.mean([v[0] for v in vs])),
+                "mean_yaw_rate_fit_pct": float(np.mean([v[1] for v in vs]))} for c, vs in out.items()}
+
+
+def _step(label, score: HeldOutScore, trials) -> dict:
+    return {"model": label, "effects": score.effects, "mean_eq6_error_pct": score.mean_eq6(),
+            "held_out_sum_of_squares": score.sum_of_squares, "cases": score.by_case(trials)}
+
+
+def _relinearize(lin: Linearization, friction, effects, evaluator) -> Linearization:
+    """The chord step: the residuals at the new model, the columns and the input noise reused."""
+    out = evaluator.map(_evaluate, [(t, friction, effects) for t in lin.trials], "residuals at the new model")
+    coords = [dataclasses.replace(c, value=v) for c, v in zip(lin.coordinates, _coordinate_values(
+        lin.coordinates, friction, effects), strict=True)]
+    r0 = [o[0] if len(o[0]) == len(r) else r for o, r in zip(out, lin.r0, strict=True)]
+    return dataclasses.replace(lin, friction=friction, effects=dict(effects), coordinates=coords, r0=r0,
+                               eq6=[o[1] for o in out], yaw_fit=[o[2] for o in out])
+
+
+def _coordinate_values(coords, friction, effects) -> List[float]:
+    values = []
+    for c in coords:
+        if c.owner == "friction":
+            values.append(getattr(friction, c.name))
+        else:
+            effect = LIBRARY[c.owner]
+            values.append(float(effect.coordinates(effect_values(effects, effect))[c.name]))
+    return values
+
+
+def _rank(lin: Linearization, base: Fit, model_names: List[str], names: List[str]) -> List[CandidateResult]:
+    """Every candidate fitted with today's model's free parameters, scored on held-out trials (linear)."""
+    before = _rms(base.held_out)
+    x_model = lin.rows(model_names, range(len(lin.trials)))[0]
+    projected = {}
+    results = []
+    for name in names:
+        own = [c.name for c in lin.coordinates if c.owner == name]
+        fitted = fit(lin, model_names + own)
+        after = _rms(fitted.held_out)
+        x_own = lin.rows(own, range(len(lin.trials)))[0]
+        projected[name] = _orthogonal_to(x_own, x_model)
+        idx = [fitted.names.index(n) for n in own]
+        coords = [lin.coordinate(n) for n in own]
+        effect = LIBRARY[name]
+        values = effect.coordinates(effect_values(lin.effects, effect))
+        values.update({n: float(fitted.values[i]) for n, i in zip(own, idx, strict=True)})
+        se = {n: float(fitted.standard_errors[i]) for n, i in zip(own, idx, strict=True)}
+        p = wald_p(fitted, own)
+        reduction = 1.0 - (after / before) ** 2 if before > 0 else 0.0
+        detectable = {n: 3.0 * se[n] for n in own}
+        visible = any(3.0 * se[n] < max(abs(c.lower), abs(c.upper)) for n, c in zip(own, coords, strict=True)) and \
+            np.linalg.norm(projected[name]) > 1e-9
+        if not visible:
+            status = "not detectable here"
+        elif p >= P_ACCEPT:
+            status = "not significant"
+        elif reduction < MIN_HELD_OUT_REDUCTION:
+            status = "no held-out gain"
+        else:
+            status = "candidate"
+        results.append(CandidateResult(
+            name=name, parameters=effect.from_coordinates(values),
+            coordinates={n: [values[n], se[n]] for n in own},
+            interval95={n: [values[n] - 1.96 * se[n], values[n] + 1.96 * se[n]] for n in own},
+            wald_p=p, held_out_before=before, held_out_after=after, held_out_reduction=reduction,
+            aic_delta=fitted.aic - base.aic, score=reduction, status=status, detectable_strength=detectable,
+            visibility=_visibility(lin, name)))
+    for c in results:
+        for other in results:
+            if other is c or np.linalg.norm(projected[c.name]) < 1e-9 or np.linalg.norm(projected[other.name]) < 1e-9:
+                continue
+            if subspace_cosine(projected[c.name], projected[other.name]) >= INDISTINGUISHABLE_COS:
+                c.indistinguishable_from.append(other.name)
+    results.sort(key=lambda c: -c.score)
+    return results
+
+
+def _where_it_fails(campaign, trials, friction, effects, evaluator) -> dict:
+    from .compare import CampaignReport
+    from .residuals import where_it_fails
+
+    out = evaluator.map(_replay_and_score, [(t, friction, effects) for t in trials], "where the model fails")
+    report = CampaignReport(campaign=str(campaign.path), friction=friction, trials=[o[0] for o in out],
+                            runs={t.trial_id: o[1] for t, o in zip(trials, out, strict=True)})
+    return report, where_it_fails(report, campaign).to_json()
+
+
+def _verdict(accepted, misfit_p, rounds) -> tuple:
+    consistent = misfit_p > P_MISFIT
+    if accepted and consistent:
+        return "effect_found", (f"accepted {', '.join(accepted)}; what is left is consistent with the noise "
+                                f"(final positions p = {misfit_p:.2g})")
+    if not accepted and consistent:
+        return "no_missing_effect", (f"no candidate is significant on held-out trials, and the misfit is consistent "
+                                     f"with the noise (final positions p = {misfit_p:.2g})")
+    partial = f"; {', '.join(accepted)} helped but did not explain it (partial)" if accepted else ""
+    return "unexplained", (f"the residual is not explained by any candidate (final positions p = {misfit_p:.2g})"
+                           f"{partial}")
+
+
+# ------------------------------------------------------------------------------------------ the probe study
+
+PROBE_KINDS = {
+    "no failure, 140 deg/s": ([], None),
+    "no failure, 70 deg/s": ([], 70.0),
+    "joint 7 failed": ([7], None),
+    "joint 13 failed": ([13], None),
+    "joint 2 failed": ([2], None),
+}
+PROBE_SECONDS = 3.0
+
+
+def probe_visibility(friction: Friction, effects: Dict[str, float], names: List[str], *, workers=None,
+                     seconds: float = PROBE_SECONDS, progress=None) -> Dict[str, Dict[str, dict]]:
+    """Which kind of trial sees each candidate: a noise-free `seconds`-long trial of every PROBE_KINDS
+    kind is synthesized from the model, replayed, and each candidate coordinate's probe step applied.
+    Returns kind -> candidate -> {"final_cm_per_probe", "detectable_strength" (three standard errors of
+    one trial with the campaign format's stated noise, no input noise), "columns"}."""
+    import tempfile
+    from pathlib import Path
+
+    from .config import Gait, Stop
+    from .executor import make_executor
+    from .measurements import load_campaign
+    from .synthesize import Case, Noise, Variation, synthesize_campaign
+
+    design = [Case(list(failed), 1, gait=None if f is None else Gait(frequency_deg_s=f))
+              for failed, f in PROBE_KINDS.values()]
+    with tempfile.TemporaryDirectory() as tmp:
+        synthesize_campaign(tmp, design=design, friction=friction, effects=effects, noise=Noise().scaled(0.0),
+                            variation=Variation(0.0, 0.0, 0.0), stop=Stop(line_x_m=None, revolutions=None,
+                                                                           time_limit_s=seconds))
+        trials = load_campaign(Path(tmp)).trials
+    with make_executor(workers=workers or min(os.cpu_count() or 1, len(trials))) as executor:
+        lin = linearize(trials, friction, effects, names, Evaluator(executor, progress),
+                        noise=[np.zeros((1, 1))] * len(trials))
+    out: Dict[str, Dict[str, dict]] = {}
+    for kind, (failed, frequency) in PROBE_KINDS.items():
+        trial_index = next(k for k, t in enumerate(trials) if t.failed_joints == list(failed)
+                           and t.gait.frequency_deg_s == (frequency or Gait().frequency_deg_s))
+        for name in names:
+            own = [c for c in lin.coordinates if c.owner == name]
+            cols = np.column_stack([lin.columns[c.name][trial_index] for c in own])
+            norms = np.linalg.norm(cols, axis=0)
+            out.setdefault(kind, {})[name] = {
+                "final_cm_per_probe": {c.name: float(100 * FINAL_SIGMA_M * np.linalg.norm(cols[:2, i]) * c.step)
+                                       for i, c in enumerate(own)},
+                "detectable_strength": {c.name: (float(3.0 / norms[i]) if norms[i] > 0 else math.inf)
+                                        for i, c in enumerate(own)},
+                "columns": cols}
+    return out
+
+
+def _suggest_experiments(rounds, not_detectable, friction, effects, workers, progress) -> None:
+    """Fill in, from the probe study, the kind of trial that would see each effect not detectable here
+    and that would tell apart candidates these data cannot."""
+    if not rounds:
+        return
+    pairs = sorted({tuple(sorted((c.name, other))) for c in rounds[0].candidates for other in c.indistinguishable_from})
+    hidden = [d["name"] for d in not_detectable if LIBRARY[d["name"]].seen_in_replay]
+    names = list(dict.fromkeys(hidden + [n for pair in pairs for n in pair]))
+    if not names:
+        return
+    study = probe_visibility(friction, effects, names, workers=workers, progress=progress)
+    for d in not_detectable:
+        if d["name"] not in hidden:
+            continue
+        best = min(study, key=lambda kind: min(study[kind][d["name"]]["detectable_strength"].values()))
+        strength = study[best][d["name"]]["detectable_strength"]
+        d["experiment"] = (f"a {best} trial: one {PROBE_SECONDS:g} s trial detects "
+                           + ", ".join(f"{k} of {v:.3g}" for k, v in strength.items()) + " (sensor noise only)")
+    by_name = {c.name: c for c in rounds[0].candidates}
+    for a, b in pairs:
+        cosines = {kind: subspace_cosine(study[kind][a]["columns"], study[kind][b]["columns"]) for kind in study
+                   if np.linalg.norm(study[kind][a]["columns"]) > 0 and np.linalg.norm(study[kind][b]["columns"]) > 0}
+        if cosines:
+            kind = min(cosines, key=cosines.get)
+            text = f"a {kind} trial tells {a} and {b} apart (cosine {cosines[kind]:.2f})"
+            for n in (a, b):
+                by_name[n].experiment = text if by_name[n].experiment is None else by_name[n].experiment + "; " + text

@@ -1,0 +1,185 @@
+"""Finding the missing physics. The linear machinery (bounded fit, held-out predictions, Wald test,
+misfit test, look-alike detection) against hand-built data; then the user's demand, data with a hidden
+effect: a visible effect is found, ranked first and accepted with its parameter inside its interval
+and the held-out error at least halved; an effect the replays cannot see is reported as not detectable
+here and nothing else is accepted; a campaign without a hidden effect gets nothing accepted; an effect
+outside the library gets no confident wrong answer. (All effects over many seeds and strengths:
+benchmarks/diagnosis.py.)"""
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+from rc1_drake import diagnose as dg
+from rc1_drake.config import FRICTION_NAMES, Friction, Gait, Stop
+from rc1_drake.effects import LIBRARY, Effect, EffectParameter, register
+from rc1_drake.measurements import Trial, load_campaign
+from rc1_drake.synthesize import Case, synthesize_campaign
+
+# ------------------------------------------------------------------------------------------ linear machinery
+
+
+def test_ground_slope_coordinates_round_trip():
+    slope = LIBRARY["ground_slope"]
+    coords = slope.coordinates({"ground_slope_deg": 5.0, "ground_slope_direction_deg": 120.0})
+    assert coords["ground_slope_x_deg"] == pytest.approx(5 * math.cos(math.radians(120)))
+    assert coords["ground_slope_y_deg"] == pytest.approx(5 * math.sin(math.radians(120)))
+    back = slope.from_coordinates(coords)
+    assert back["ground_slope_deg"] == pytest.approx(5.0) and back["ground_slope_direction_deg"] == pytest.approx(120.0)
+
+
+def test_model_at_writes_friction_and_effects_through_their_coordinates():
+    coords = dg.friction_coordinates(Friction())[:2] + dg.effect_coordinates("ground_slope", {})
+    friction, effects = dg.model_at(Friction(), {"wheel_toe_deg": 1.0}, coords, [0.1, 2.0, 0.0, -3.0])
+    assert (friction.c_joint, friction.mu_lat, friction.mu_long) == (0.1, 2.0, Friction().mu_long)
+    assert effects["wheel_toe_deg"] == 1.0  # the model's other effects stay
+    assert effects["ground_slope_deg"] == pytest.approx(3.0) and effects["ground_slope_direction_deg"] == pytest.approx(-90)
+
+
+def test_bounded_least_squares_matches_lstsq_and_respects_bounds():
+    rng = np.random.default_rng(0)
+    x, d_true = rng.normal(size=(40, 3)), np.array([0.5, -1.0, 2.0])
+    r = -x @ d_true
+    free = dg.bounded_least_squares(x, r, np.full(3, -10.0), np.full(3, 10.0))
+    assert free == pytest.approx(d_true, abs=1e-6)
+    capped = dg.bounded_least_squares(x, r, np.full(3, -10.0), np.array([10.0, 10.0, 1.0]))
+    assert capped[2] == pytest.approx(1.0, abs=1e-8)
+    # With the third held at 1, the first two are the least squares of the rest (by hand: lstsq).
+    expected = np.linalg.lstsq(x[:, :2], -(r + x[:, 2]), rcond=None)[0]
+    assert capped[:2] == pytest.approx(expected, abs=1e-6)
+    assert dg.bounded_least_squares(np.zeros((5, 1)), np.ones(5), -np.ones(1), np.ones(1)) == pytest.approx([0.0])
+
+
+def _linearization(columns, r0, noise_sd=0.0, trials=4):
+    """A hand-built Linearization of `trials` trials of 12 residuals each: two coordinates."""
+    kinds = ["none", "J7"] * trials
+    fakes = [dataclasses.replace(_FAKE_TRIAL, trial_id=f"t{k}", failed_joints=[] if kinds[k] == "none" else [7])
+             for k in range(trials)]
+    coords = [dg.Coordinate("a", "friction", 0.0, -5, 5, 0.1), dg.Coordinate("b", "effect", 0.0, -5, 5, 1.0)]
+    return dg.Linearization(trials=fakes, friction=Friction(), effects={}, coordinates=coords, r0=r0,
+                            eq6=[0.0] * trials, yaw_fit=[0.0] * trials, columns=columns,
+                            noise=[np.eye(12) * noise_sd**2 for _ in range(trials)])
+
+
+_FAKE_TRIAL = Trial(trial_id="t", failed_joints=[], gait=Gait(), stop=None, initial_head_pose=np.zeros(3),
+                    final_head_xy=np.ones(2), t=np.zeros(2), q=np.zeros((2, 13)), head_yaw_rate=np.zeros(2))
+
+
+def test_fit_recovers_a_linear_truth_and_its_held_out_predictions_are_exact():
+    rng = np.random.default_rng(1)
+    a, b = rng.normal(size=(4, 12)), rng.normal(size=(4, 12))
+    lin = _linearization({"a": list(a), "b": list(b)}, list(-(0.7 * a - 1.3 * b)))  # noise-free: d = (0.7, -1.3)
+    fitted = dg.fit(lin, ["a", "b"])
+    assert fitted.values == pytest.approx([0.7, -1.3], abs=1e-6)
+    assert all(np.abs(h).max() < 1e-5 for h in fitted.held_out)  # leave-one-out of an exact model: exact
+    only_a = dg.fit(lin, ["a"])
+    assert only_a.held_out_sum_of_squares() > 1.0  # the missing column shows on held-out trials
+
+
+def test_wald_test_finds_a_real_effect_and_not_a_null_one():
+    rng = np.random.default_rng(3)
+    a, b, noise = rng.normal(size=(4, 12)), rng.normal(size=(4, 12)), rng.normal(size=(4, 12))
+    columns = {"a": list(a), "b": list(b)}
+    real = dg.fit(_linearization(columns, list(-(0.5 * a + 2.0 * b) + noise)), ["a", "b"])
+    null = dg.fit(_linearization(columns, list(-0.5 * a + noise)), ["a", "b"])
+    assert dg.wald_p(real, ["b"]) < 1e-6
+    assert dg.wald_p(null, ["b"]) > 0.01
+
+
+def test_final_position_misfit_is_uniform_under_the_noise_and_small_beyond_it():
+    rng = np.random.default_rng(4)
+    ps = []
+    for _ in range(200):
+        r0 = [rng.normal(size=12) * math.sqrt(1.0 + 0.5**2) for _ in range(4)]
+        ps.append(dg.final_misfit(_linearization({"a": [np.zeros(12)] * 4, "b": [np.zeros(12)] * 4}, r0,
+                                                 noise_sd=0.5), r0, 0)[2])
+    assert 0.35 < np.mean(ps) < 0.65 and np.mean(np.array(ps) < 0.05) < 0.12  # uniform: mean 0.5, 5% below 0.05
+    big = [rng.normal(size=12) * 4 for _ in range(4)]
+    assert dg.final_misfit(_linearization({"a": [np.zeros(12)] * 4, "b": [np.zeros(12)] * 4}, big), big, 0)[2] < 1e-3
+
+
+def test_subspace_cosine():
+    x = np.random.default_rng(5).normal(size=(30, 2))
+    assert dg.subspace_cosine(x[:, :1], 3 * x[:, :1]) == pytest.approx(1.0)
+    assert dg.subspace_cosine(x[:, :1], x) == pytest.approx(1.0)  # inside the span
+    q, _ = np.linalg.qr(x)
+    assert dg.subspace_cosine(q[:, :1], q[:, 1:]) == pytest.approx(0.0, abs=1e-12)
+
+
+# ------------------------------------------------------------------------------------- hidden-effect campaigns
+
+SECONDS = 2.0
+DESIGN = [Case([], 1), Case([7], 2)]  # the nominal gait sees the wheels; a failed joint sees the rest
+
+
+def _campaign(folder, effects, seed=11):
+    synthesize_campaign(folder, design=DESIGN, effects=effects, seed=seed,
+                        stop=Stop(line_x_m=None, revolutions=None, time_limit_s=SECONDS))
+    return load_campaign(folder)
+
+
+def _diagnose(campaign, **kwargs):
+    # Three 2 s trials identify no friction coefficient (README, Friction identification), so the tests
+    # hold them at the truth and spend no replays on them; the friction refit is tested in test_identify.
+    return dg.diagnose(campaign, friction=Friction(), held=FRICTION_NAMES, workers=2, probe_study=False, **kwargs)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("effect, key, value", [("wheel_toe", "wheel_toe_deg", 1.5)])
+def test_a_visible_hidden_effect_is_ranked_first_accepted_and_recovered(tmp_path, effect, key, value):
+    result = _diagnose(_campaign(tmp_path, {key: value}))
+    first = result.candidates[0]
+    assert first.name == effect and first.accepted, result.rounds[0].table()
+    assert result.accepted[0] == effect and result.verdict == "effect_found", result.explanation
+    estimate, se = first.coordinates[key]
+    assert abs(estimate - value) < 1.96 * se, (estimate, se)
+    assert abs(result.effects[key] - value) < 0.2 * value  # the final model, after its refit
+    assert first.simulated["held_out_sum_of_squares_after"] <= 0.5 * first.simulated["held_out_sum_of_squares_before"]
+    assert result.waterfall[-1]["mean_eq6_error_pct"] <= 0.5 * result.waterfall[1]["mean_eq6_error_pct"]
+
+
+@pytest.mark.slow
+def test_an_effect_the_replays_cannot_see_is_reported_not_detectable_and_nothing_else_accepted(tmp_path):
+    result = _diagnose(_campaign(tmp_path, {"servo_lag_s": 0.05}))
+    assert result.accepted == [] and result.verdict == "no_missing_effect", result.rounds[0].table()
+    hidden = {d["name"]: d for d in result.not_detectable}
+    assert "servo_lag" in hidden and "gait" in hidden["servo_lag"]["experiment"]
+
+
+@pytest.mark.slow
+def test_a_campaign_without_a_hidden_effect_gets_nothing_accepted(tmp_path):
+    result = _diagnose(_campaign(tmp_path, {}, seed=12))
+    assert result.accepted == [] and result.verdict == "no_missing_effect", result.rounds[0].table()
+    assert result.effects == {}
+
+
+class FloorSeams(Effect):
+    """Outside the library (this test only): floor seams every 0.4 m twist the head about z."""
+
+    name = "floor_seams_test_only"
+    summary = "a yaw torque on the head, periodic in its x position"
+    parameters = (EffectParameter("floor_seam_torque_Nm", 0.0, 1.0),)
+
+    def configure(self, setup, values):
+        torque = values["floor_seam_torque_Nm"]
+
+        def force(x):
+            out = np.zeros(16)
+            out[2] = torque * math.sin(2 * math.pi * x[0] / 0.4)
+            return out
+
+        setup.extra_forces.append(force)
+
+
+@pytest.mark.slow
+def test_an_effect_outside_the_library_gets_no_confident_wrong_answer(tmp_path):
+    register(FloorSeams())
+    try:
+        campaign = _campaign(tmp_path, {"floor_seam_torque_Nm": 0.3})
+    finally:
+        LIBRARY.pop(FloorSeams.name)
+    result = _diagnose(campaign)
+    assert result.verdict == "unexplained" or not result.accepted, (result.verdict, result.rounds[0].table())
+    assert result.verdict != "effect_found"
