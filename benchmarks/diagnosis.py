@@ -47,9 +47,8 @@ def one(effect, strength, seed, seconds, workers) -> dict:
     inside = None
     if effect is not None:
         key, value = REFERENCE[effect][0], effects[REFERENCE[effect][0]]
-        mine = next((c for c in result.candidates if c.name == effect), None)
-        if mine is not None and key in mine.coordinates:
-            v, se = mine.coordinates[key]
+        if key in result.final_coordinates:  # the final model's estimate (after every round's refit)
+            v, se = result.final_coordinates[key]
             inside = abs(v - value) <= 1.96 * se
     return {"effect": effect, "strength": strength, "seed": seed, "verdict": result.verdict,
             "accepted": result.accepted, "first": first.name if first else None, "inside_interval": inside,

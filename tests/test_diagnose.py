@@ -136,8 +136,13 @@ def test_a_visible_hidden_effect_is_ranked_first_accepted_and_recovered(tmp_path
     estimate, se = first.coordinates[key]
     assert abs(estimate - value) < 1.96 * se, (estimate, se)
     assert abs(result.effects[key] - value) < 0.2 * value  # the final model, after its refit
+    final, final_se = result.final_coordinates[key]
+    assert abs(final - value) < 1.96 * final_se and final == pytest.approx(result.effects[key])
     assert first.simulated["held_out_sum_of_squares_after"] <= 0.5 * first.simulated["held_out_sum_of_squares_before"]
-    assert result.waterfall[-1]["mean_eq6_error_pct"] <= 0.5 * result.waterfall[1]["mean_eq6_error_pct"]
+    # Eq. 6 of a 2 s trial has a floor: the hand's 1 cm (mean |error| 1.25 cm in the plane) over ~0.4 m.
+    floor = np.mean([100 * 0.0125 / np.linalg.norm(t.final_head_xy - t.initial_head_pose[:2]) for t in result._trials])
+    after, before = result.waterfall[-1]["mean_eq6_error_pct"], result.waterfall[1]["mean_eq6_error_pct"]
+    assert after - floor <= 0.5 * (before - floor), (before, after, floor)  # the error above the floor halved
 
 
 @pytest.mark.slow
