@@ -40,7 +40,7 @@ import numpy as np
 
 from . import identify as idf
 from .config import FRICTION_NAMES, Friction
-from .effects import LIBRARY, effect_values
+from .effects import LIBRARY, active, effect_values
 
 P_ACCEPT = 2.7e-3  # Wald test of a candidate's parameters against 0: |z| > 3 for one parameter
 MIN_HELD_OUT_REDUCTION = 0.10  # the simulated held-out error must fall by at least this fraction
@@ -67,8 +67,8 @@ class Coordinate:
 def friction_coordinates(friction: Friction, held=()) -> List[Coordinate]:
     out = []
     for p in [p for p in idf.DEFAULT_PARAMETERS if p.name not in held]:
-        value, span = getattr(friction, p.name), p.upper - p.lower
-        out.append(Coordinate(p.name, "friction", value, p.lower, p.upper, max(0.05 * abs(value), 0.005 * span)))
+        value = getattr(friction, p.name)
+        out.append(Coordinate(p.name, "friction", value, p.lower, p.upper, idf.difference_step(p, value)))
     return out
 
 
@@ -147,8 +147,7 @@ class Linearization:
         x = np.vstack([np.column_stack([self.columns[n][k] for n in names]) if names else
                        np.zeros((len(self.r0[k]), 0)) for k in trials])
         r = np.concatenate([self.r0[k] for k in trials])
-        channels = np.concatenate([np.r_[idf.FINAL_CHANNEL, idf.FINAL_CHANNEL,
-                                         np.full(len(self.r0[k]) - 2, idf.PATH_CHANNEL)] for k in trials])
+        channels = np.concatenate([idf.residual_channels(self.r0[k]) for k in trials])
         return x, r, channels, [len(self.r0[k]) for k in trials]
 
     def coordinate(self, name) -> Coordinate:
@@ -299,13 +298,7 @@ class HeldOutScore:
     yaw_fit_pct: Dict[str, float]
 
     def by_case(self, trials) -> Dict[str, dict]:
-        out: Dict[str, dict] = {}
-        for t in trials:
-            out.setdefault(t.case, {"eq6": [], "fit": []})
-            out[t.case]["eq6"].append(self.eq6_pct[t.trial_id])
-            out[t.case]["fit"].append(self.yaw_fit_pct[t.trial_id])
-        return {c: {"mean_eq6_error_pct": float(np.mean(v["eq6"])), "mean_yaw_rate_fit_pct": float(np.mean(v["fit"]))}
-                for c, v in out.items()}
+        return _cases(trials, [self.eq6_pct[t.trial_id] for t in trials], [self.yaw_fit_pct[t.trial_id] for t in trials])
 
     def mean_eq6(self) -> float:
         return float(np.mean(list(self.eq6_pct.values())))
@@ -407,7 +400,7 @@ def linearize(trials, friction, effects, candidates: List[str], evaluator: Evalu
     """Residuals at (friction, effects) and their forward-difference columns for the friction
     coefficients, the model's own effects and the candidates; the input noise when `noise` is None."""
     coords = friction_coordinates(friction, held)
-    for name in list(dict.fromkeys([*(e.name for e in _active(effects)), *candidates])):
+    for name in list(dict.fromkeys([*(e.name for e in active(effects)), *candidates])):
         coords += effect_coordinates(name, effects)
     jobs, models = [], [(friction, effects)]
     for c in coords:
@@ -435,12 +428,6 @@ def linearize(trials, friction, effects, candidates: List[str], evaluator: Evalu
 
 def _signed_step(c: Coordinate) -> float:
     return c.step if c.value + c.step <= c.upper else -c.step
-
-
-def _active(effects):
-    from .effects import active
-
-    return active(effects)
 
 
 def held_out_by_simulation(lin: Linearization, fitted: Fit, evaluator: Evaluator, label: str) -> HeldOutScore:
@@ -502,7 +489,7 @@ def diagnose(campaign, *, friction: Optional[Friction] = None, effects=None, can
             not_detectable.append({"name": n, "reason": "replays follow the measured joint angles, which already "
                                    "contain it", "experiment": "runs driven by the gait command (rc1 run), compared "
                                    "with the measured joint angles: the servo channel"})
-    replayed = [n for n in names if LIBRARY[n].seen_in_replay and n not in _names(_active(effects))]
+    replayed = [n for n in names if LIBRARY[n].seen_in_replay and n not in [e.name for e in active(effects)]]
     with make_executor(workers=workers or min(os.cpu_count() or 1, len(chosen)), scheduler=scheduler) as executor:
         evaluator = Evaluator(executor, progress)
         lin = linearize(chosen, friction, effects, replayed, evaluator, input_noise_samples=input_noise_samples,
@@ -529,8 +516,8 @@ def diagnose(campaign, *, friction: Optional[Friction] = None, effects=None, can
             results = _rank(lin, base_fit, model_names, [n for n in replayed if n not in accepted])
             winner = None
             for c in [c for c in results if c.status == "candidate"][:2]:
-                cand_names = model_names + [co.name for co in lin.coordinates if co.owner == c.name]
-                check = held_out_by_simulation(lin, fit(lin, cand_names), evaluator, f"{label} + {c.name}")
+                cand_fit = fit(lin, model_names + [co.name for co in lin.coordinates if co.owner == c.name])
+                check = held_out_by_simulation(lin, cand_fit, evaluator, f"{label} + {c.name}")
                 reduction = 1.0 - check.sum_of_squares / baseline.sum_of_squares
                 c.simulated = {"held_out_sum_of_squares_before": baseline.sum_of_squares,
                                "held_out_sum_of_squares_after": check.sum_of_squares,
@@ -538,7 +525,7 @@ def diagnose(campaign, *, friction: Optional[Friction] = None, effects=None, can
                                "held_out_mean_eq6_pct_before": baseline.mean_eq6(),
                                "held_out_mean_eq6_pct_after": check.mean_eq6()}
                 if reduction >= MIN_HELD_OUT_REDUCTION:
-                    c.status, c.accepted, winner = "accepted", True, (c, check)
+                    c.status, c.accepted, winner = "accepted", True, (c, check, cand_fit)
                     break
                 c.status = "no held-out gain when simulated"
             for c in results:
@@ -549,14 +536,13 @@ def diagnose(campaign, *, friction: Optional[Friction] = None, effects=None, can
             if winner is None:
                 stop_reason = "no candidate accepted"
                 break
-            c, check = winner
+            c, check, cand_fit = winner
             accepted.append(c.name)
             waterfall.append(_step("+ " + " + ".join(accepted) + " (held out)", check, chosen))
-            cand_names = model_names + [co.name for co in lin.coordinates if co.owner == c.name]
-            new_friction, new_effects = model_at(lin.friction, lin.effects, [lin.coordinate(n) for n in cand_names],
-                                                 fit(lin, cand_names).values)
+            model_names = cand_fit.names
+            new_friction, new_effects = model_at(lin.friction, lin.effects, [lin.coordinate(n) for n in model_names],
+                                                 cand_fit.values)
             lin = _relinearize(lin, new_friction, new_effects, evaluator)
-            model_names = cand_names
         final_fit = fit(lin, model_names)
         friction_out, effects_out = model_at(lin.friction, lin.effects, [lin.coordinate(n) for n in model_names],
                                              final_fit.values)
@@ -579,10 +565,6 @@ def diagnose(campaign, *, friction: Optional[Friction] = None, effects=None, can
                      not_detectable=not_detectable, where_it_fails=where, simulations=evaluator.simulations,
                      wall_s=time.perf_counter() - started, _trials=chosen, report=report,
                      final_coordinates=final_coordinates, stop_reason=stop_reason)
-
-
-def _names(effects) -> List[str]:
-    return [e.name for e in effects]
 
 
 def _cases(trials, eq6, fit_pct) -> Dict[str, dict]:

@@ -297,6 +297,19 @@ def trial_residual(trial, run) -> np.ndarray:
     return np.concatenate(parts)
 
 
+def residual_channels(residual) -> np.ndarray:
+    """Which channel each of one trial's residuals (trial_residual) belongs to: its first two are the final
+    position, the rest the camera path or the yaw rate."""
+    return np.r_[FINAL_CHANNEL, FINAL_CHANNEL, np.full(len(residual) - 2, PATH_CHANNEL)]
+
+
+def difference_step(parameter: "Parameter", value: float, relative_step: float = 0.05) -> float:
+    """The forward-difference step of a parameter at `value`: relative_step of the value, at least 0.5% of
+    the bounds' range for a friction coefficient; 2% of the range for an effect parameter."""
+    span = parameter.upper - parameter.lower
+    return max(relative_step * abs(value), 0.005 * span) if parameter.is_friction else 0.02 * span
+
+
 def _replay_residual(trial, friction: Friction, effects=None) -> np.ndarray:
     return trial_residual(trial, _replay(trial, friction, effects))
 
@@ -324,9 +337,7 @@ class CampaignResiduals:
     def __call__(self, friction: Friction, effects=None) -> np.ndarray:
         parts = _map_trials(_replay_residual, self.trials, friction, _with_fixed(self.effects, effects), self.executor)
         self.simulations += len(self.trials)
-        # Which channel each residual belongs to: each trial's first two are its final position.
-        self.channels = np.concatenate([np.r_[FINAL_CHANNEL, FINAL_CHANNEL, np.full(len(p) - 2, PATH_CHANNEL)]
-                                        for p in parts])
+        self.channels = np.concatenate([residual_channels(p) for p in parts])
         return np.concatenate(parts)
 
     def input_noise(self, friction: Friction, effects=None, *, samples: int = INPUT_NOISE_SAMPLES,
@@ -411,7 +422,7 @@ def uncertainty(residuals, friction: Friction, *, parameters=None, relative_step
     columns, per_percent = [], []
     for p in free:
         value, span = parameter_value(p.name, friction, effects), p.upper - p.lower
-        h = max(relative_step * abs(value), 0.005 * span) if p.is_friction else 0.02 * span
+        h = difference_step(p, value, relative_step)
         step = h if value + h <= p.upper else -h
         columns.append((residuals(*with_values(friction, effects, {p.name: value + step})) - r0) / step)
         per_percent.append(0.01 * (abs(value) if p.is_friction and value > 0 else span))
