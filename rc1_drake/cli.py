@@ -558,7 +558,7 @@ def cmd_diagnose(args) -> int:
           f"{', '.join(result.free) or 'none'}, the others held):")
     for k, r in enumerate(result.rounds):
         print(f"\nround {k + 1}: candidates against {r.baseline.label} (held-out: leave one trial out; "
-              f"final-position misfit p = {r.misfit_p:.2g})")
+              f"final-position misfit p = {r.misfit_p:.2g}; today's model's parameters: {r.refit})")
         print(r.table())
     print("\nVisibility: the final head position's change (cm) per probe step of each candidate, per case:")
     print(result.visibility_table())

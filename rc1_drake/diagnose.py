@@ -141,14 +141,27 @@ class Linearization:
     yaw_fit: List[float]
     columns: Dict[str, List[np.ndarray]]  # coordinate name -> per-trial d r / d coordinate
     noise: List[np.ndarray]  # per trial: input-noise covariance of its residuals
+    weights: Optional[np.ndarray] = None  # per trial (trial_weights of the noise, by default)
 
-    def rows(self, names, trials) -> tuple:
-        """(X, r0, channels, per-trial row counts) over the `trials` indices."""
-        x = np.vstack([np.column_stack([self.columns[n][k] for n in names]) if names else
-                       np.zeros((len(self.r0[k]), 0)) for k in trials])
-        r = np.concatenate([self.r0[k] for k in trials])
+    def __post_init__(self):
+        if self.weights is None:
+            self.weights = trial_weights(self.trials, self.noise)
+
+    def rows(self, names, trials, *, weighted=False) -> tuple:
+        """(X, r0, channels, per-trial row counts) over the `trials` indices; `weighted`: each trial's
+        rows times its weight."""
+        w = [self.weights[k] if weighted else 1.0 for k in trials]
+        x = np.vstack([w_k * np.column_stack([self.columns[n][k] for n in names]) if names else
+                       np.zeros((len(self.r0[k]), 0)) for k, w_k in zip(trials, w, strict=True)])
+        r = np.concatenate([w_k * self.r0[k] for k, w_k in zip(trials, w, strict=True)])
         channels = np.concatenate([idf.residual_channels(self.r0[k]) for k in trials])
         return x, r, channels, [len(self.r0[k]) for k in trials]
+
+    def weighted_rms(self, residuals: List[np.ndarray]) -> float:
+        return float(math.sqrt(self.weighted_sum_of_squares(residuals) / sum(len(r) for r in residuals)))
+
+    def weighted_sum_of_squares(self, residuals: List[np.ndarray]) -> float:
+        return float(sum(w * w * float(r @ r) for w, r in zip(self.weights, residuals, strict=True)))
 
     def coordinate(self, name) -> Coordinate:
         return next(c for c in self.coordinates if c.name == name)
@@ -184,14 +197,14 @@ class Fit:
 
 
 def fit(lin: Linearization, names: List[str]) -> Fit:
-    """Bounded linear least squares over `names`, its sandwich covariance (channel variances and input
-    noise), and leave-one-trial-out predictions."""
+    """Bounded weighted linear least squares over `names` (each trial's rows times its weight), its
+    sandwich covariance (channel variances and input noise), and leave-one-trial-out predictions."""
     coords = [lin.coordinate(n) for n in names]
     reach = np.array([math.inf if c.owner == "friction" else TRUST_STEPS * c.step for c in coords])
     lower = np.maximum(np.array([c.lower - c.value for c in coords]), -reach)
     upper = np.minimum(np.array([c.upper - c.value for c in coords]), reach)
     everything = list(range(len(lin.trials)))
-    x, r, channels, counts = lin.rows(names, everything)
+    x, r, channels, counts = lin.rows(names, everything, weighted=True)
     d = bounded_least_squares(x, r, lower, upper)
     e = r + x @ d
     variance = idf._channel_variances(e, channels, len(names))
@@ -201,11 +214,11 @@ def fit(lin: Linearization, names: List[str]) -> Fit:
     start = 0
     for k, n in enumerate(counts):
         xk = x[start:start + n]
-        middle += xk.T @ (np.diag(variance[start:start + n]) + lin.noise[k]) @ xk
+        middle += xk.T @ (np.diag(variance[start:start + n]) + lin.weights[k] ** 2 * lin.noise[k]) @ xk
         start += n
     cov = inv @ middle @ inv
     se = np.sqrt(np.clip(np.diag(cov), 0.0, None))
-    per_trial = np.split(e, np.cumsum(counts)[:-1])
+    per_trial = [part / w for part, w in zip(np.split(e, np.cumsum(counts)[:-1]), lin.weights, strict=True)]
     held, held_steps = [], []
     for k in everything:
         rest = [j for j in everything if j != k]
@@ -213,7 +226,7 @@ def fit(lin: Linearization, names: List[str]) -> Fit:
             held.append(lin.r0[k].copy())
             held_steps.append(np.zeros(len(names)))
             continue
-        xr, rr, _, _ = lin.rows(names, rest)
+        xr, rr, _, _ = lin.rows(names, rest, weighted=True)
         dk = bounded_least_squares(xr, rr, lower, upper)
         xk, _, _, _ = lin.rows(names, [k])
         held.append(lin.r0[k] + xk @ dk)
@@ -222,6 +235,17 @@ def fit(lin: Linearization, names: List[str]) -> Fit:
     aic = m * math.log(max(float(e @ e), 1e-300) / m) + 2 * len(names)
     return Fit(names=list(names), values=np.array([c.value for c in coords]) + d, steps=d, standard_errors=se,
                covariance=cov, residual=per_trial, held_out=held, held_out_steps=held_steps, aic=aic)
+
+
+def trial_weights(trials, noise) -> np.ndarray:
+    """Each trial's weight in the fits: 1 / sqrt(1 + v) with v its case's mean input-noise variance (in
+    standardized units, where the sensor noise is 1), a scalar feasible generalized least squares. A trial
+    whose replay moves a lot with the angle noise alone (a joint-2 failure: final position +-10 cm, measured)
+    tells less about the physics and no longer dominates the fit."""
+    pooled: Dict[str, list] = {}
+    for trial, n in zip(trials, noise, strict=True):
+        pooled.setdefault(trial.case, []).append(float(np.mean(np.diag(n))) if len(n) else 0.0)
+    return np.array([1.0 / math.sqrt(1.0 + float(np.mean(pooled[t.case]))) for t in trials])
 
 
 def wald_p(fitted: Fit, names: List[str]) -> float:
@@ -235,19 +259,56 @@ def wald_p(fitted: Fit, names: List[str]) -> float:
     return float(chi2.sf(stat, len(idx)))
 
 
-def final_misfit(lin: Linearization, residual: List[np.ndarray], free: int) -> tuple:
-    """(chi-squared, dof, p) of the final positions against the hand noise (RESIDUAL_SIGMAS, 1 in
-    standardized units) plus the input noise, pooled per case: the four resampled replays of one trial
-    estimate a variance too loosely."""
-    from scipy.stats import chi2
-
+def _final_position_variances(lin: Linearization) -> Dict[str, float]:
+    """Per case: the final position's variance per axis, standardized (hand noise 1 plus the input noise,
+    pooled per case: the four resampled replays of one trial estimate a variance too loosely)."""
     pooled: Dict[str, list] = {}
     for trial, noise in zip(lin.trials, lin.noise, strict=True):
         pooled.setdefault(trial.case, []).append(np.diag(noise)[:2])
-    variance = {case: 1.0 + float(np.mean(v)) for case, v in pooled.items()}
-    stat = float(sum(float(r[:2] @ r[:2]) / variance[t.case] for t, r in zip(lin.trials, residual, strict=True)))
-    dof = max(2 * len(lin.trials) - free, 1)
+    return {case: 1.0 + float(np.mean(v)) for case, v in pooled.items()}
+
+
+def final_misfit(lin: Linearization, residual: List[np.ndarray], free: int, exclude=()) -> tuple:
+    """(chi-squared, dof, p) of the final positions of the trials not in `exclude` (ids) against the hand
+    noise (RESIDUAL_SIGMAS, 1 in standardized units) plus the input noise."""
+    from scipy.stats import chi2
+
+    variance = _final_position_variances(lin)
+    kept = [(t, r) for t, r in zip(lin.trials, residual, strict=True) if t.trial_id not in exclude]
+    stat = float(sum(float(r[:2] @ r[:2]) / variance[t.case] for t, r in kept))
+    dof = max(2 * len(kept) - free, 1)
     return stat, dof, float(chi2.sf(stat, dof))
+
+
+@dataclasses.dataclass
+class Misfit:
+    """What a model leaves in the final positions: the campaign's p-value without the outlying trials,
+    and those trials (each far beyond the noise on its own: p below P_MISFIT / trials)."""
+
+    p: float
+    outliers: Dict[str, dict]  # trial -> {"off_cm", "noise_cm", "p"}
+
+    @property
+    def consistent(self) -> bool:
+        return self.p > P_MISFIT
+
+
+MAX_OUTLIER_FRACTION = 0.1  # more outlying trials than this: the misfit is the campaign's, not theirs
+
+
+def misfit(lin: Linearization, residual: List[np.ndarray], free: int) -> Misfit:
+    from scipy.stats import chi2
+
+    variance = _final_position_variances(lin)
+    outliers = {}
+    for t, r in zip(lin.trials, residual, strict=True):
+        p = float(chi2.sf(float(r[:2] @ r[:2]) / variance[t.case], 2))
+        if p < P_MISFIT / len(lin.trials):
+            outliers[t.trial_id] = {"off_cm": 100 * FINAL_SIGMA_M * float(np.linalg.norm(r[:2])),
+                                    "noise_cm": 100 * FINAL_SIGMA_M * math.sqrt(variance[t.case]), "p": p}
+    if len(outliers) > MAX_OUTLIER_FRACTION * len(lin.trials):
+        return Misfit(p=final_misfit(lin, residual, free)[2], outliers=outliers)
+    return Misfit(p=final_misfit(lin, residual, free, exclude=outliers)[2], outliers=outliers)
 
 
 def _orthogonal_to(x, basis) -> np.ndarray:
@@ -312,6 +373,7 @@ class Round:
     candidates: List[CandidateResult]  # ranked, best first
     accepted: Optional[str]
     misfit_p: float  # today's model's final-position misfit against the noise
+    refit: str = ""  # whether today's model's parameters were refitted this round, or kept (and why)
 
     def table(self) -> str:
         lines = [f"{'candidate':<32}{'fitted (95% interval)':<44}{'held-out rms':>14}{'gain':>6}{'Wald p':>9}"
@@ -336,13 +398,14 @@ class Diagnosis:
     accepted: List[str]
     verdict: str
     explanation: str
-    misfit_p: float  # the final model's
+    misfit_p: float  # the final model's, without the unexplained trials
     not_detectable: List[dict]
     where_it_fails: Optional[dict]
     simulations: int
     wall_s: float
     final_coordinates: Dict[str, List[float]] = dataclasses.field(default_factory=dict)  # name -> [value, se]
     stop_reason: str = ""
+    unexplained_trials: Dict[str, dict] = dataclasses.field(default_factory=dict)  # trial -> misfit (see Misfit)
     _trials: list = dataclasses.field(default_factory=list, repr=False)
     report: object = dataclasses.field(default=None, repr=False)  # compare.CampaignReport of the final model (plots)
 
@@ -358,13 +421,13 @@ class Diagnosis:
             "baseline_error": {"held_out_mean_eq6_pct": self.rounds[0].baseline.mean_eq6(),
                                "cases": self.rounds[0].baseline.by_case(self._trials)} if self.rounds else None,
             "candidates": [dataclasses.asdict(c) for c in self.candidates],
-            "rounds": [{"effects": r.effects, "accepted": r.accepted, "misfit_p": r.misfit_p,
+            "rounds": [{"effects": r.effects, "accepted": r.accepted, "misfit_p": r.misfit_p, "refit": r.refit,
                         "candidates": [dataclasses.asdict(c) for c in r.candidates]} for r in self.rounds],
             "accepted_effects": self.accepted,
             "model": {"friction": dataclasses.asdict(self.friction), "effects": self.effects},
             "error_after": self.waterfall[-1] if self.waterfall else None,
             "final_coordinates": self.final_coordinates, "stop_reason": self.stop_reason,
-            "waterfall": self.waterfall, "misfit_p": self.misfit_p, "not_detectable": self.not_detectable,
+            "waterfall": self.waterfall, "misfit_p": self.misfit_p, "unexplained_trials": self.unexplained_trials, "not_detectable": self.not_detectable,
             "where_it_fails": self.where_it_fails, "simulations": self.simulations, "wall_s": self.wall_s,
         }
 
@@ -389,10 +452,6 @@ class Diagnosis:
         return "\n".join(lines)
 
 
-def _rms(residuals: List[np.ndarray]) -> float:
-    return float(math.sqrt(sum(float(r @ r) for r in residuals) / sum(len(r) for r in residuals)))
-
-
 # ------------------------------------------------------------------------------------------------ the loop
 
 def linearize(trials, friction, effects, candidates: List[str], evaluator: Evaluator, *, noise=None,
@@ -402,28 +461,31 @@ def linearize(trials, friction, effects, candidates: List[str], evaluator: Evalu
     coords = friction_coordinates(friction, held)
     for name in list(dict.fromkeys([*(e.name for e in active(effects)), *candidates])):
         coords += effect_coordinates(name, effects)
-    jobs, models = [], [(friction, effects)]
+    base = evaluator.map(_evaluate, [(t, friction, effects) for t in trials], "residuals at the model")
+    jobs, where = [], []
     for c in coords:
         values = [c2.value + (_signed_step(c) if c2 is c else 0.0) for c2 in coords]
-        models.append(model_at(friction, effects, coords, values))
-    for model in models:
-        jobs += [(t, *model) for t in trials]
-    noise_jobs = [] if noise is not None else [(t, friction, effects, input_noise_samples, k)
-                                                for k, t in enumerate(trials)]
+        model = model_at(friction, effects, coords, values)
+        for k, t in enumerate(trials):
+            if t.failed_joints or not _acts_in_failed_joints_only(c):  # else the replay is base's exactly
+                jobs.append((t, *model))
+                where.append((c.name, k))
     outputs = evaluator.map(_evaluate, jobs, f"linearizing at the model ({len(coords)} directions)")
     if noise is None:
+        noise_jobs = [(t, friction, effects, input_noise_samples, k, len(base[k][0])) for k, t in enumerate(trials)]
         noise = evaluator.map(idf._input_noise_covariance, noise_jobs, "input noise")
-        evaluator.simulations += len(noise_jobs) * input_noise_samples
-    n = len(trials)
-    base = outputs[:n]
-    columns = {}
-    for j, c in enumerate(coords):
-        out = outputs[(j + 1) * n:(j + 2) * n]
-        columns[c.name] = [(o[0] - b[0]) / _signed_step(c) if len(o[0]) == len(b[0]) else np.zeros(len(b[0]))
-                           for o, b in zip(out, base, strict=True)]
+        evaluator.simulations += len(noise_jobs) * (input_noise_samples - 1)  # map counted one per trial
+    columns = {c.name: [np.zeros(len(b[0])) for b in base] for c in coords}
+    for (name, k), o in zip(where, outputs, strict=True):
+        if len(o[0]) == len(base[k][0]):  # a replay that stops elsewhere has no column: 0
+            columns[name][k] = (o[0] - base[k][0]) / _signed_step(next(c for c in coords if c.name == name))
     return Linearization(trials=list(trials), friction=friction, effects=dict(effects), coordinates=coords,
                          r0=[b[0] for b in base], eq6=[b[1] for b in base], yaw_fit=[b[2] for b in base],
                          columns=columns, noise=list(noise))
+
+
+def _acts_in_failed_joints_only(c: Coordinate) -> bool:
+    return c.name == "c_joint" if c.owner == "friction" else LIBRARY[c.owner].failed_joints_only
 
 
 def _signed_step(c: Coordinate) -> float:
@@ -440,7 +502,7 @@ def held_out_by_simulation(lin: Linearization, fitted: Fit, evaluator: Evaluator
     out = evaluator.map(_evaluate, jobs, f"held-out replays: {label}")
     ids = [t.trial_id for t in lin.trials]
     _, effects = model_at(lin.friction, lin.effects, coords, fitted.values)
-    return HeldOutScore(label=label, effects=effects, sum_of_squares=float(sum(float(o[0] @ o[0]) for o in out)),
+    return HeldOutScore(label=label, effects=effects, sum_of_squares=lin.weighted_sum_of_squares([o[0] for o in out]),
                         eq6_pct=dict(zip(ids, [o[1] for o in out], strict=True)),
                         yaw_fit_pct=dict(zip(ids, [o[2] for o in out], strict=True)))
 
@@ -499,24 +561,38 @@ def diagnose(campaign, *, friction: Optional[Friction] = None, effects=None, can
                       "mean_eq6_error_pct": float(np.mean(lin.eq6)),
                       "cases": _cases(chosen, lin.eq6, lin.yaw_fit)}
         rounds, accepted, waterfall = [], [], [start_step]
-        model_names = list(free)
+        model_names = list(free)  # the model's fitted parameters: the free friction, then the accepted effects'
         stop_reason = f"{max_rounds} rounds"
         for round_index in range(max_rounds):
-            if round_index and final_misfit(lin, lin.r0, len(model_names))[2] > P_MISFIT:
+            if round_index and misfit(lin, lin.r0, len(model_names)).consistent:
                 # What the accepted effects leave is noise: searching it only finds false alarms (measured:
                 # head drag accepted after a true toe, benchmarks/diagnosis.py), and the reused columns are stale.
                 stop_reason = "what the accepted effects leave is consistent with the noise"
                 break
-            base_fit = fit(lin, model_names)
-            label = "today's model, friction refitted" if not accepted else "+ " + " + ".join(accepted)
-            baseline = held_out_by_simulation(lin, base_fit, evaluator, label)
-            if round_index == 0:
-                waterfall.append(_step(label, baseline, chosen))
-            misfit_p = final_misfit(lin, base_fit.residual, len(model_names))[2]
-            results = _rank(lin, base_fit, model_names, [n for n in replayed if n not in accepted])
+            label = "today's model" if not accepted else "+ " + " + ".join(accepted)
+            current = HeldOutScore(label=label + " (no refit)", effects=dict(lin.effects),
+                                   sum_of_squares=lin.weighted_sum_of_squares(lin.r0),
+                                   eq6_pct={t.trial_id: e for t, e in zip(chosen, lin.eq6, strict=True)},
+                                   yaw_fit_pct={t.trial_id: f for t, f in zip(chosen, lin.yaw_fit, strict=True)})
+            round_names, baseline, refit_note = model_names, current, "nothing to refit"
+            if model_names:
+                base_fit = fit(lin, model_names)
+                refit = held_out_by_simulation(lin, base_fit, evaluator, label + ", refitted")
+                if round_index == 0:
+                    waterfall.append(_step("today's model, friction refitted", refit, chosen))
+                if refit.sum_of_squares < current.sum_of_squares:
+                    baseline, refit_note = refit, "refitted"
+                else:
+                    # The linear step of a nonlinear (Coulomb) model can overshoot: keep what simulation rejects out.
+                    round_names, refit_note = [], (f"kept: refitting {', '.join(model_names)} raised the held-out "
+                                                   f"sum of squares from {current.sum_of_squares:.4g} to "
+                                                   f"{refit.sum_of_squares:.4g}")
+            base_fit = fit(lin, round_names)
+            left = misfit(lin, base_fit.residual, len(round_names))
+            results = _rank(lin, base_fit, round_names, [n for n in replayed if n not in accepted])
             winner = None
             for c in [c for c in results if c.status == "candidate"][:2]:
-                cand_fit = fit(lin, model_names + [co.name for co in lin.coordinates if co.owner == c.name])
+                cand_fit = fit(lin, round_names + [co.name for co in lin.coordinates if co.owner == c.name])
                 check = held_out_by_simulation(lin, cand_fit, evaluator, f"{label} + {c.name}")
                 reduction = 1.0 - check.sum_of_squares / baseline.sum_of_squares
                 c.simulated = {"held_out_sum_of_squares_before": baseline.sum_of_squares,
@@ -532,25 +608,26 @@ def diagnose(campaign, *, friction: Optional[Friction] = None, effects=None, can
                 if c.status == "candidate":
                     c.status = "significant, not checked (a better candidate was)"
             rounds.append(Round(friction=lin.friction, effects=dict(lin.effects), baseline=baseline, candidates=results,
-                                accepted=winner[0].name if winner else None, misfit_p=misfit_p))
+                                accepted=winner[0].name if winner else None, misfit_p=left.p, refit=refit_note))
             if winner is None:
                 stop_reason = "no candidate accepted"
                 break
             c, check, cand_fit = winner
             accepted.append(c.name)
             waterfall.append(_step("+ " + " + ".join(accepted) + " (held out)", check, chosen))
-            model_names = cand_fit.names
-            new_friction, new_effects = model_at(lin.friction, lin.effects, [lin.coordinate(n) for n in model_names],
+            model_names = list(dict.fromkeys(model_names + cand_fit.names))
+            new_friction, new_effects = model_at(lin.friction, lin.effects, [lin.coordinate(n) for n in cand_fit.names],
                                                  cand_fit.values)
             lin = _relinearize(lin, new_friction, new_effects, evaluator)
+        # The model written is the last one checked by simulation (no unchecked chord step); its parameters'
+        # standard errors come from the linearization there.
+        friction_out, effects_out = lin.friction, lin.effects
         final_fit = fit(lin, model_names)
-        friction_out, effects_out = model_at(lin.friction, lin.effects, [lin.coordinate(n) for n in model_names],
-                                             final_fit.values)
         report, where = _where_it_fails(campaign, chosen, friction_out, effects_out, evaluator)
         simulated = [idf.trial_residual(t, report.runs[t.trial_id]) for t in chosen]
-        final_coordinates = {n: [float(v), float(se)] for n, v, se in zip(
-            final_fit.names, final_fit.values, final_fit.standard_errors, strict=True)}
-        misfit_p = final_misfit(lin, simulated, len(model_names))[2]  # the final model's replays, not the linear guess
+        final_coordinates = {n: [float(lin.coordinate(n).value), float(se)] for n, se in zip(
+            final_fit.names, final_fit.standard_errors, strict=True)}
+        left = misfit(lin, simulated, len(model_names))  # the final model's replays, not the linear guess
     for r in rounds:
         for c in r.candidates:
             if c.status == "not detectable here" and c.name not in [d["name"] for d in not_detectable]:
@@ -558,10 +635,11 @@ def diagnose(campaign, *, friction: Optional[Friction] = None, effects=None, can
                                        "significant on these trials", "experiment": c.experiment})
     if probe_study:
         _suggest_experiments(rounds, not_detectable, friction_out, effects_out, workers, progress)
-    verdict, explanation = _verdict(accepted, misfit_p, rounds)
+    verdict, explanation = _verdict(accepted, left)
     return Diagnosis(campaign=str(campaign.path), start_friction=friction, start_effects=dict(effects or {}),
                      free=free, rounds=rounds, waterfall=waterfall, friction=friction_out, effects=effects_out,
-                     accepted=accepted, verdict=verdict, explanation=explanation, misfit_p=misfit_p,
+                     accepted=accepted, verdict=verdict, explanation=explanation, misfit_p=left.p,
+                     unexplained_trials=left.outliers,
                      not_detectable=not_detectable, where_it_fails=where, simulations=evaluator.simulations,
                      wall_s=time.perf_counter() - started, _trials=chosen, report=report,
                      final_coordinates=final_coordinates, stop_reason=stop_reason)
@@ -603,15 +681,15 @@ def _coordinate_values(coords, friction, effects) -> List[float]:
 
 def _rank(lin: Linearization, base: Fit, model_names: List[str], names: List[str]) -> List[CandidateResult]:
     """Every candidate fitted with today's model's free parameters, scored on held-out trials (linear)."""
-    before = _rms(base.held_out)
-    x_model = lin.rows(model_names, range(len(lin.trials)))[0]
+    before = lin.weighted_rms(base.held_out)
+    x_model = lin.rows(model_names, range(len(lin.trials)), weighted=True)[0]
     projected = {}
     results = []
     for name in names:
         own = [c.name for c in lin.coordinates if c.owner == name]
         fitted = fit(lin, model_names + own)
-        after = _rms(fitted.held_out)
-        x_own = lin.rows(own, range(len(lin.trials)))[0]
+        after = lin.weighted_rms(fitted.held_out)
+        x_own = lin.rows(own, range(len(lin.trials)), weighted=True)[0]
         projected[name] = _orthogonal_to(x_own, x_model)
         idx = [fitted.names.index(n) for n in own]
         coords = [lin.coordinate(n) for n in own]
@@ -659,17 +737,20 @@ def _where_it_fails(campaign, trials, friction, effects, evaluator) -> dict:
     return report, where_it_fails(report, campaign).to_json()
 
 
-def _verdict(accepted, misfit_p, rounds) -> tuple:
-    consistent = misfit_p > P_MISFIT
-    if accepted and consistent:
+def _verdict(accepted, left: Misfit) -> tuple:
+    outliers = ""
+    if left.outliers:
+        outliers = "; not explained: " + ", ".join(
+            f"{k} (final position off by {o['off_cm']:.0f} cm, noise {o['noise_cm']:.1f} cm)" for k, o in left.outliers.items())
+    if left.consistent and accepted:
         return "effect_found", (f"accepted {', '.join(accepted)}; what is left is consistent with the noise "
-                                f"(final positions p = {misfit_p:.2g})")
-    if not accepted and consistent:
+                                f"(final positions p = {left.p:.2g}){outliers}")
+    if left.consistent:
         return "no_missing_effect", (f"no candidate is significant on held-out trials, and the misfit is consistent "
-                                     f"with the noise (final positions p = {misfit_p:.2g})")
+                                     f"with the noise (final positions p = {left.p:.2g}){outliers}")
     partial = f"; {', '.join(accepted)} helped but did not explain it (partial)" if accepted else ""
-    return "unexplained", (f"the residual is not explained by any candidate (final positions p = {misfit_p:.2g})"
-                           f"{partial}")
+    return "unexplained", (f"the residual is not explained by any candidate (final positions p = {left.p:.2g})"
+                           f"{partial}{outliers}")
 
 
 # ------------------------------------------------------------------------------------------ the probe study

@@ -60,6 +60,7 @@ class Effect:
     parameters: tuple = ()
     summary: str = ""
     seen_in_replay: bool = True  # False: it acts only on runs driven by the gait command
+    failed_joints_only: bool = False  # True: it acts only in failed joints (a trial without one is unchanged)
 
     def configure(self, setup: ModelSetup, values: Dict[str, float]) -> None:
         """Change `setup` for parameter `values` (all of this effect's keys present)."""
@@ -145,6 +146,7 @@ class HeadDrag(Effect):
 class JointCoulombFriction(Effect):
     name = "joint_coulomb_friction"
     summary = "dry friction torque in a failed (free) joint, beside its viscous c_joint"
+    failed_joints_only = True
     parameters = (EffectParameter("joint_coulomb_Nm", 0.0, 1.0, probe=0.05),)
 
     def configure(self, setup, values):

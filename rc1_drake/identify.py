@@ -314,14 +314,16 @@ def _replay_residual(trial, friction: Friction, effects=None) -> np.ndarray:
     return trial_residual(trial, _replay(trial, friction, effects))
 
 
-def _input_noise_covariance(trial, friction: Friction, effects, samples: int, seed: int) -> np.ndarray:
-    """Covariance of one trial's residuals over `samples` replays with resampled angle noise."""
+def _input_noise_covariance(trial, friction: Friction, effects, samples: int, seed: int, length=None) -> np.ndarray:
+    """Covariance of one trial's residuals over `samples` replays with resampled angle noise; `length`:
+    that of the unperturbed replay's residuals, when the caller has it (else it is replayed)."""
     replayer, rng = _replayer(trial), np.random.default_rng(seed)
-    base = trial_residual(trial, replayer.run(friction, effects))
+    if length is None:
+        length = len(trial_residual(trial, replayer.run(friction, effects)))
     draws = [trial_residual(trial, replayer.run_resampled(friction, effects, rng)) for _ in range(samples)]
-    draws = np.array([d for d in draws if len(d) == len(base)])  # a replay that stopped elsewhere: left out
+    draws = np.array([d for d in draws if len(d) == length])  # a replay that stopped elsewhere: left out
     if len(draws) < 2:
-        return np.zeros((len(base), len(base)))
+        return np.zeros((length, length))
     deviation = draws - draws.mean(axis=0)
     return deviation.T @ deviation / (len(draws) - 1)
 
