@@ -32,6 +32,12 @@ def _friction_override(text: str) -> tuple[str, float]:
         raise argparse.ArgumentTypeError(f"'{value}' is not a number (in {text})") from None
 
 
+def _html_path(text: str) -> Path:
+    if not text.lower().endswith((".html", ".htm")):
+        raise argparse.ArgumentTypeError(f"{text}: the animation is written as HTML: give a path ending in .html")
+    return Path(text)
+
+
 def _joint(text: str) -> int:
     try:
         j = int(text)
@@ -69,6 +75,8 @@ def make_parser() -> argparse.ArgumentParser:
     run.add_argument("--time-limit-s", type=_float, metavar="T", help="stop after T seconds at the latest")
     run.add_argument("--json", type=Path, metavar="PATH", help="write the summary as JSON")
     run.add_argument("--plot", type=Path, metavar="PATH", help="write the head path figure (PNG, PDF, SVG)")
+    run.add_argument("--animate", type=_html_path, metavar="PATH.html",
+                     help="write a standalone HTML animation of the run (Meshcat, plays offline in a browser)")
 
     syn = sub.add_parser("synthesize", help="write a synthetic campaign in the measurement format")
     syn.add_argument("out", type=Path, help="campaign folder to create (must not exist)")
@@ -284,6 +292,10 @@ def cmd_run(args) -> int:
         title = f"{args.scenario}: failed joints {scenario.failed_joints or 'none'} - {summary.outcome}"
         fig = head_path_figure([run], title=title)
         _write_atomically(args.plot, lambda p: fig.savefig(p, format=args.plot.suffix.lstrip(".") or "png", dpi=120))
+    if args.animate:
+        from .animate import write_animation
+
+        print(f"animation: {write_animation(run, args.animate)}")
     return 0
 
 

@@ -85,6 +85,33 @@ def add_heading_control(builder, plant, scenario: Scenario):
     return clamp.get_output_port()
 
 
+def add_friction(builder, rc1, servo_torque_port, scenario: Scenario) -> FrictionForces:
+    """Add the wheel and joint friction (Eqs. 4-5, c_joint; friction.FrictionForces) between the plant's
+    state, the servos' torque and the plant's applied generalized force."""
+    plant = rc1.plant
+    friction = builder.AddSystem(
+        FrictionForces(plant, rc1.geometry, scenario.friction, scenario.numerics.sgn_smoothing_m_s)
+    )
+    friction.set_name("friction")
+    builder.Connect(plant.get_state_output_port(), friction.get_input_port(0))
+    builder.Connect(servo_torque_port, friction.get_input_port(1))
+    builder.Connect(friction.get_output_port(0), plant.get_applied_generalized_force_input_port())
+    return friction
+
+
+def diagram_svg(diagram, *, max_depth: int = 1) -> str:
+    """The Diagram drawn by Graphviz's dot (scripts/setup.sh installs it), as SVG text."""
+    import shutil
+    import subprocess
+
+    from .config import Rc1Error
+
+    if shutil.which("dot") is None:
+        raise Rc1Error("drawing a Diagram needs Graphviz's dot program: run scripts/setup.sh (it installs graphviz)")
+    dot = diagram.GetGraphvizString(max_depth=max_depth)
+    return subprocess.run(["dot", "-Tsvg"], input=dot, capture_output=True, text=True, check=True).stdout
+
+
 def build_diagram(scenario: Scenario, *, joint_reference=None) -> RC1Diagram:
     """The Diagram for `scenario`; with `joint_reference` (a Drake trajectory of the 13 joint angles,
     e.g. measured ones) the servos follow it instead of the serpenoid."""
@@ -101,13 +128,7 @@ def build_diagram(scenario: Scenario, *, joint_reference=None) -> RC1Diagram:
         desired_state, bias = source.get_output_port(), None
     power, servo_torque = add_servos(builder, rc1, desired_state, scenario.servo, scenario.numerics.time_step_s)
 
-    friction = builder.AddSystem(
-        FrictionForces(plant, rc1.geometry, scenario.friction, scenario.numerics.sgn_smoothing_m_s)
-    )
-    friction.set_name("friction")
-    builder.Connect(plant.get_state_output_port(), friction.get_input_port(0))
-    builder.Connect(servo_torque, friction.get_input_port(1))
-    builder.Connect(friction.get_output_port(0), plant.get_applied_generalized_force_input_port())
+    friction = add_friction(builder, rc1, servo_torque, scenario)
 
     nq = plant.num_positions()
     imu_select = np.zeros((1, 2 * nq))

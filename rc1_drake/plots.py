@@ -2,9 +2,13 @@
 
 from __future__ import annotations
 
+import os
+import sys
+
 import matplotlib
 
-matplotlib.use("Agg")  # files only; notebooks set their own backend before importing pyplot
+if "MPLBACKEND" not in os.environ and "matplotlib.pyplot" not in sys.modules:
+    matplotlib.use("Agg")  # files only, unless a notebook (or the user) chose a backend
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
@@ -53,6 +57,27 @@ def head_path_figure(runs, *, labels=None, title=None, measured_final=None):
     ax.legend(loc="best", fontsize=8)
     if title:
         ax.set_title(title)
+    fig.tight_layout()
+    return fig
+
+
+def joints_figure(runs, *, labels=None, joints=(1, 2, 7, 13)):
+    """Joint angles (deg) and servo torques (N m) against time, one column per joint, one line per run."""
+    runs = list(runs)
+    labels = labels or [None] * len(runs)
+    fig, axes = plt.subplots(2, len(joints), figsize=(3.2 * len(joints), 5), sharex=True, squeeze=False)
+    for col, j in enumerate(joints):
+        for run, label in zip(runs, labels, strict=True):
+            axes[0, col].plot(run.t, np.degrees(run.q[:, j - 1]), lw=1, label=label)
+            axes[1, col].plot(run.t, run.servo_torque[:, j - 1], lw=1, label=label)
+        axes[0, col].set_title(f"joint {j}")
+        axes[1, col].set_xlabel("t (s)")
+        for ax in axes[:, col]:
+            ax.grid(True, alpha=0.3)
+    axes[0, 0].set_ylabel("angle q (deg)")
+    axes[1, 0].set_ylabel("servo torque (N m)")
+    if any(labels):
+        axes[0, -1].legend(fontsize=8)
     fig.tight_layout()
     return fig
 

@@ -35,6 +35,7 @@ def test_run_writes_summary_json_and_plot(tmp_path, capsys):
         (["run", "--friction", "mu_lat=-2"], "friction.mu_lat: must be >= 0"),
         (["run", "--failed-joint", "7", "--scenario", "joint_7"], "joint 7 is listed twice"),
         (["fly"], "invalid choice"),
+        (["run", "--animate", "run.gif"], "give a path ending in .html"),
         (["run", "--effect", "slope=1"], "unknown effect 'slope'"),
         (["run", "--effect", "ground_slope=35"], "effects.ground_slope_deg: must be a number in [0, 20], got 35"),
         (["identify", "data/paper_campaign", "--input-noise-samples", "-1"], "-1 must be at least 0"),
