@@ -1,14 +1,15 @@
 """Finding the missing physics: detection rates and false alarms over seeds and strengths.
 
     python benchmarks/diagnosis.py [--seeds 3] [--time-limit-s 3] [--workers 2] [--effects NAME,...]
-                                   [--strengths 0.5,1,2] [--out benchmarks/out/diagnosis.jsonl]
+                                   [--strengths 0.5,1,2] [--hold-friction] [--out benchmarks/out/diagnosis.jsonl]
 
 For every effect the replays can see, campaigns of the diagnosis design (a no-failure trial and two
 joint-7 failures, like tests/test_diagnose.py) are synthesized with the effect hidden at each strength
 (a multiple of its reference strength below) and each seed, and diagnosed with the whole library;
 campaigns with no hidden effect measure false alarms. A row per campaign streams to --out (rerunning
 resumes); the table gives, per effect and strength, how often it was accepted, ranked first, recovered
-inside its 95% interval, and how often another effect was accepted instead.
+inside its 95% interval, and how often another effect was accepted instead. --hold-friction holds the
+friction at the truth, as the tests do (short trials identify no friction coefficient).
 """
 
 import argparse
@@ -17,7 +18,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from rc1_drake.config import Friction, Stop
+from rc1_drake.config import FRICTION_NAMES, Friction, Stop
 from rc1_drake.diagnose import diagnose
 from rc1_drake.measurements import load_campaign
 from rc1_drake.synthesize import Case, synthesize_campaign
@@ -35,14 +36,14 @@ REFERENCE = {  # a clearly visible strength on DESIGN's 3 s trials (diagnose.pro
 }
 
 
-def one(effect, strength, seed, seconds, workers) -> dict:
+def one(effect, strength, seed, seconds, workers, held=()) -> dict:
     effects = {} if effect is None else {REFERENCE[effect][0]: REFERENCE[effect][1] * strength}
     with tempfile.TemporaryDirectory() as tmp:
         synthesize_campaign(tmp, design=DESIGN, effects=effects, seed=seed,
                             stop=Stop(line_x_m=None, revolutions=None, time_limit_s=seconds))
         campaign = load_campaign(tmp)
         start = time.perf_counter()
-        result = diagnose(campaign, friction=Friction(), workers=workers, probe_study=False)
+        result = diagnose(campaign, friction=Friction(), workers=workers, probe_study=False, held=held)
     first = result.candidates[0] if result.candidates else None
     inside = None
     if effect is not None:
@@ -52,6 +53,9 @@ def one(effect, strength, seed, seconds, workers) -> dict:
             inside = abs(v - value) <= 1.96 * se
     return {"effect": effect, "strength": strength, "seed": seed, "verdict": result.verdict,
             "accepted": result.accepted, "first": first.name if first else None, "inside_interval": inside,
+            "estimate": result.final_coordinates.get(REFERENCE[effect][0]) if effect else None,
+            "first_round": [[c.name, c.status, c.coordinates, (c.simulated or {}).get("held_out_reduction")]
+                            for c in result.candidates],
             "final_effects": result.effects, "simulations": result.simulations,
             "wall_s": time.perf_counter() - start}
 
@@ -63,6 +67,7 @@ def main():
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--effects", default=",".join(REFERENCE))
     parser.add_argument("--strengths", default="0.5,1,2")
+    parser.add_argument("--hold-friction", action="store_true", help="hold the friction at the truth (as the tests)")
     parser.add_argument("--out", type=Path, default=Path("benchmarks/out/diagnosis.jsonl"))
     args = parser.parse_args()
     args.out.parent.mkdir(parents=True, exist_ok=True)
@@ -77,7 +82,7 @@ def main():
     for n, job in enumerate(jobs):
         if job in done:
             continue
-        row = one(*job, args.time_limit_s, args.workers)
+        row = one(*job, args.time_limit_s, args.workers, FRICTION_NAMES if args.hold_friction else ())
         done[job] = row
         with args.out.open("a") as f:
             f.write(json.dumps(row) + "\n")

@@ -49,9 +49,9 @@ import time
 from typing import Dict, List, Optional
 
 import numpy as np
-from scipy.interpolate import make_smoothing_spline
 
 from .config import NUM_JOINTS, Friction, Rc1Error
+from .smoothing import smoothing_spline
 
 # The four wheel coefficients the base rows see, in this column order.
 WHEEL_NAMES = ("mu_lat", "mu_long", "c_lat", "c_long")
@@ -83,7 +83,7 @@ def sees_whole_configuration(trial) -> bool:
 
 
 def _spline_derivatives(t, y, t_eval):
-    spline = make_smoothing_spline(t, y)
+    spline = smoothing_spline(t, y)
     return spline(t_eval), spline.derivative(1)(t_eval), spline.derivative(2)(t_eval)
 
 

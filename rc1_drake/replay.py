@@ -5,21 +5,21 @@ potentiometers are dead). The paper drives working joints kinematically; here st
 torque limit to speak of follow a reference, which comes to the same (tests: tracking RMS < 0.5 deg).
 
 Measured angles are noisy. Each working joint's samples are smoothed by a penalized cubic smoothing
-spline whose smoothing weight is chosen by generalized cross-validation (scipy's
-make_smoothing_spline), which also gives the joint rates; the reference is the C1 cubic Hermite
-through the smoothed values and rates at the sample times.
+spline whose smoothing weight is chosen by generalized cross-validation (smoothing.py), which also
+gives the joint rates; the reference is the C1 cubic Hermite through the smoothed values and rates at
+the sample times.
 """
 
 import dataclasses
 
 import numpy as np
 from pydrake.trajectories import PiecewisePolynomial
-from scipy.interpolate import make_smoothing_spline
 
 from .config import Failure, Friction, Numerics, Scenario, Servo, Start, Stop
 from .gait import serpenoid
 from .measurements import Trial
 from .protocol import Run, Session, rest_state
+from .smoothing import smoothing_spline
 
 # Stiff tracking in place of the paper's kinematic joints. The servo is explicit and the wheel
 # friction implicit; with servos this stiff the pair needs a 0.25 ms step (at 0.5 ms the head's
@@ -45,7 +45,7 @@ def joint_reference(trial: Trial, measured_q=None) -> JointReference:
     q = np.zeros_like(trial.q)
     q_dot = np.zeros_like(trial.q)
     for j in trial.working_joints:
-        spline = make_smoothing_spline(t, measured[:, j - 1])
+        spline = smoothing_spline(t, measured[:, j - 1])
         q[:, j - 1] = spline(t)
         q_dot[:, j - 1] = spline.derivative()(t)
     trajectory = PiecewisePolynomial.CubicHermite(t, q.T, q_dot.T)

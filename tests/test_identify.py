@@ -178,7 +178,8 @@ def test_a_design_beyond_the_servos_is_refused(tmp_path):
 
 def test_an_effect_parameter_is_fitted_beside_the_friction(tmp_path):
     """Synthetic round trip for an effect, without sensor noise: a 1 deg wheel toe in the truth; the fit
-    starts without it and recovers it within 5%, in degrees (linear scale), from one 3 s no-failure trial.
+    starts without it and recovers it within 10%, in degrees (linear scale), from one 3 s no-failure trial:
+    a replay of noise-free angles ends within ~1 mm of the truth, and 0.1 deg of toe moves it ~3 mm.
     (With the sensor noise of data/README.md the estimates scatter by ~0.3 deg over seeds while the
     reported standard error is ~0.07: the potentiometer noise the replay follows is not in it yet.)"""
     from rc1_drake.identify import CampaignResiduals, effect_parameters, fit_program, uncertainty
@@ -191,7 +192,7 @@ def test_an_effect_parameter_is_fitted_beside_the_friction(tmp_path):
     parameters = effect_parameters("wheel_toe")
     result = fit_program(residuals, start=Friction(), parameters=parameters, max_iterations=5)
     assert result.friction == Friction() and set(result.effects) == {"wheel_toe_deg"}
-    assert result.effects["wheel_toe_deg"] == pytest.approx(1.0, rel=0.05)
+    assert result.effects["wheel_toe_deg"] == pytest.approx(1.0, rel=0.1)
     spread = uncertainty(residuals, result.friction, parameters=parameters, effects=result.effects,
                          input_noise_samples=0)  # no sensor noise here
     assert spread.values == [result.effects["wheel_toe_deg"]] and spread.identifiable == [True]

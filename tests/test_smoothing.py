@@ -1,0 +1,52 @@
+"""The O(n) GCV of the smoothing spline against a dense, independent computation: the influence matrix
+built column by column from scipy's smoother."""
+
+import numpy as np
+import pytest
+from scipy.interpolate import make_smoothing_spline
+
+from rc1_drake.smoothing import gcv_lambda, gcv_terms, smoothing_spline
+
+
+def _dense(x, y, lam):
+    n = len(x)
+    influence = np.column_stack([make_smoothing_spline(x, np.eye(n)[k], lam=lam)(x) for k in range(n)])
+    residual = y - influence @ y
+    return float(residual @ residual), n - float(np.trace(influence))
+
+
+@pytest.fixture
+def samples():
+    rng = np.random.default_rng(0)
+    x = np.cumsum(rng.uniform(0.05, 0.15, 60))  # uneven spacing, as a logger's
+    return x, np.sin(x) + 0.2 * rng.normal(size=60)
+
+
+@pytest.mark.parametrize("lam", [1e-9, 1e-6, 1e-4, 1e-2])
+def test_gcv_terms_match_the_dense_influence_matrix(samples, lam):
+    x, y = samples
+    rss, trace = gcv_terms(np.diff(x), y, lam)
+    dense_rss, dense_trace = _dense(x, y, lam)
+    assert rss == pytest.approx(dense_rss, rel=1e-6) and trace == pytest.approx(dense_trace, rel=1e-6)
+
+
+def test_gcv_lambda_minimizes_the_dense_score(samples):
+    x, y = samples
+
+    def score(lam):
+        rss, trace = _dense(x, y, lam)
+        return len(x) * rss / trace**2
+
+    lam = gcv_lambda(x, y)
+    assert 1e-6 < lam < 1e2  # an interior minimum: neither interpolation nor a straight line
+    assert score(lam) <= min(score(lam * 1.5), score(lam / 1.5))
+
+
+def test_the_smoothed_angle_is_closer_to_the_truth_than_the_samples():
+    rng = np.random.default_rng(1)
+    t = np.arange(0.0, 10.0, 0.01)
+    truth = np.radians(38) * np.sin(2.44 * t)
+    noise = np.radians(0.25)
+    spline = smoothing_spline(t, truth + rng.normal(0, noise, len(t)))
+    assert np.sqrt(np.mean((spline(t) - truth) ** 2)) < 0.5 * noise
+    assert np.abs(spline.derivative()(t) - np.radians(38) * 2.44 * np.cos(2.44 * t))[50:-50].max() < 0.05  # 3% of the peak rate
