@@ -260,10 +260,16 @@ def trial_weights(trials, noise) -> np.ndarray:
     standardized units, where the sensor noise is 1), a scalar feasible generalized least squares. A trial
     whose replay moves a lot with the angle noise alone (a joint-2 failure: final position +-10 cm, measured)
     tells less about the physics and no longer dominates the fit."""
+    variance = _pooled_per_case(trials, [float(np.mean(np.diag(n))) if len(n) else 0.0 for n in noise])
+    return np.array([1.0 / math.sqrt(1.0 + variance[t.case]) for t in trials])
+
+
+def _pooled_per_case(trials, values) -> Dict[str, float]:
+    """Per case: the mean of its trials' `values` (the resampled replays of one trial are too few to trust)."""
     pooled: Dict[str, list] = {}
-    for trial, n in zip(trials, noise, strict=True):
-        pooled.setdefault(trial.case, []).append(float(np.mean(np.diag(n))) if len(n) else 0.0)
-    return np.array([1.0 / math.sqrt(1.0 + float(np.mean(pooled[t.case]))) for t in trials])
+    for trial, value in zip(trials, values, strict=True):
+        pooled.setdefault(trial.case, []).append(value)
+    return {case: float(np.mean(v)) for case, v in pooled.items()}
 
 
 def wald_p(fitted: Fit, names: List[str]) -> float:
@@ -280,10 +286,8 @@ def wald_p(fitted: Fit, names: List[str]) -> float:
 def _final_position_variances(lin: Linearization) -> Dict[str, float]:
     """Per case: the final position's variance per axis, standardized (hand noise 1 plus the input noise,
     pooled per case: the four resampled replays of one trial estimate a variance too loosely)."""
-    pooled: Dict[str, list] = {}
-    for trial, noise in zip(lin.trials, lin.noise, strict=True):
-        pooled.setdefault(trial.case, []).append(np.diag(noise)[:2])
-    return {case: 1.0 + float(np.mean(v)) for case, v in pooled.items()}
+    pooled = _pooled_per_case(lin.trials, [float(np.mean(np.diag(noise)[:2])) for noise in lin.noise])
+    return {case: 1.0 + v for case, v in pooled.items()}
 
 
 def final_misfit(lin: Linearization, residual: List[np.ndarray], free: int, exclude=()) -> tuple:
@@ -697,7 +701,7 @@ def diagnose(campaign, *, friction: Optional[Friction] = None, effects=None, can
                                        "significant on these trials", "experiment": c.experiment})
     if probe_study:
         _suggest_experiments(rounds, not_detectable, friction_out, effects_out, workers, progress)
-    verdict, explanation = _verdict(accepted, left, rounds[-1].ambiguous if rounds else [], rounds)
+    verdict, explanation = _verdict(accepted, left, rounds)
     return Diagnosis(campaign=str(campaign.path), start_friction=friction, start_effects=dict(effects or {}),
                      free=free, rounds=rounds, waterfall=waterfall, friction=friction_out, effects=effects_out,
                      accepted=accepted, verdict=verdict, explanation=explanation, misfit_p=left.p,
@@ -817,7 +821,8 @@ def _where_it_fails(campaign, trials, friction, effects, evaluator) -> dict:
     return report, where_it_fails(report, campaign).to_json()
 
 
-def _verdict(accepted, left: Misfit, ambiguous=(), rounds=()) -> tuple:
+def _verdict(accepted, left: Misfit, rounds) -> tuple:
+    ambiguous = rounds[-1].ambiguous if rounds else []
     if ambiguous:
         gains = {c.name: c.simulated["held_out_reduction"] for c in rounds[-1].candidates if c.name in ambiguous}
         experiments = sorted({c.experiment for c in rounds[-1].candidates if c.name in ambiguous and c.experiment})
