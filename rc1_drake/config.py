@@ -109,7 +109,7 @@ class Stop:
 
 @dataclasses.dataclass
 class Numerics:
-    time_step_s: float = 5e-4
+    time_step_s: float = 1e-3
     sgn_smoothing_m_s: float = 0.001
     log_period_s: float = 0.01
 

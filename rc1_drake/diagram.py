@@ -1,7 +1,7 @@
 """The RC1 Diagram: plant, serpenoid source, PID servos, failure switch, wheel friction, IMU, loggers.
 
-    serpenoid + gait_bias -> servo_pid -> servo_power -> rc1_plant.actuation
-    rc1_plant.state + servo torque -> friction -> rc1_plant.applied_generalized_force
+    serpenoid + gait_bias -> servo_pid (command) + servo_power -> friction -> rc1_plant.actuation (servo torque)
+    rc1_plant.state -> friction -> rc1_plant.applied_generalized_force (friction)
     rc1_plant.state -> head_imu (head yaw rate); loggers record the state and the servo torques.
 
 The failure switch (servo.FailureSwitch) acts on a context: it sets a failed joint's servo power to
@@ -85,17 +85,22 @@ def add_heading_control(builder, plant, scenario: Scenario):
     return clamp.get_output_port()
 
 
-def add_friction(builder, rc1, servo_torque_port, scenario: Scenario) -> FrictionForces:
-    """Add the wheel and joint friction (Eqs. 4-5, c_joint; friction.FrictionForces) between the plant's
-    state, the servos' torque and the plant's applied generalized force."""
+def add_friction(builder, rc1, servo_power, servo_command_port, scenario: Scenario) -> FrictionForces:
+    """Add the wheel and joint friction (Eqs. 4-5, c_joint; friction.FrictionForces), solved implicitly with
+    the servos' torque, between the plant's state, the servos' command and power, and the plant's applied
+    generalized force and actuation."""
     plant = rc1.plant
+    servo = scenario.servo
     friction = builder.AddSystem(
-        FrictionForces(plant, rc1.geometry, scenario.friction, scenario.numerics.sgn_smoothing_m_s)
+        FrictionForces(plant, rc1.geometry, scenario.friction, scenario.numerics.sgn_smoothing_m_s,
+                       servo_gains=(servo.kp_Nm_per_rad, servo.kd_Nm_s_per_rad))
     )
     friction.set_name("friction")
-    builder.Connect(plant.get_state_output_port(), friction.get_input_port(0))
-    builder.Connect(servo_torque_port, friction.get_input_port(1))
-    builder.Connect(friction.get_output_port(0), plant.get_applied_generalized_force_input_port())
+    builder.Connect(plant.get_state_output_port(), friction.GetInputPort("plant_state"))
+    builder.Connect(servo_command_port, friction.GetInputPort("servo_command"))
+    builder.Connect(servo_power.get_output_port(), friction.GetInputPort("servo_power"))
+    builder.Connect(friction.GetOutputPort("generalized_force"), plant.get_applied_generalized_force_input_port())
+    builder.Connect(friction.GetOutputPort("servo_torque"), plant.get_actuation_input_port())
     return friction
 
 
@@ -126,9 +131,9 @@ def build_diagram(scenario: Scenario, *, joint_reference=None) -> RC1Diagram:
         source = builder.AddSystem(TrajectorySource(joint_reference, output_derivative_order=1))
         source.set_name("joint_reference")
         desired_state, bias = source.get_output_port(), None
-    power, servo_torque = add_servos(builder, rc1, desired_state, scenario.servo, scenario.numerics.time_step_s)
-
-    friction = add_friction(builder, rc1, servo_torque, scenario)
+    power, servo_command = add_servos(builder, rc1, desired_state, scenario.servo, scenario.numerics.time_step_s)
+    friction = add_friction(builder, rc1, power, servo_command, scenario)
+    servo_torque = friction.GetOutputPort("servo_torque")
 
     nq = plant.num_positions()
     imu_select = np.zeros((1, 2 * nq))

@@ -310,4 +310,5 @@ def apply_effects(built, context, effects: Dict[str, float]) -> ModelSetup:
     params[fr.normal_slice(system.num_wheels)] = weight[geometry.wheel_module]
     params[fr.toe_slice(system.num_wheels)] = setup.wheel_toe_rad
     system.extra_forces = list(setup.extra_forces)
+    system.gravity_in_plane = bool(setup.gravity[0] or setup.gravity[1])
     return setup

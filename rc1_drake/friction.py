@@ -30,7 +30,8 @@ of the distance travelled.
 from __future__ import annotations
 
 import numpy as np
-from pydrake.systems.framework import BasicVector, LeafSystem
+from pydrake.common.value import AbstractValue
+from pydrake.systems.framework import BasicVector, LeafSystem, ValueProducer
 
 from .config import GRAVITY_M_S2, NUM_JOINTS, Friction
 from .kinematics import ChainGeometry, _wheel_kinematics, jit
@@ -115,9 +116,16 @@ def _isotropic(u_xy, coulomb, eps):
 
 
 @jit
+def _servo_torque(offset, rate, power, v_next):
+    """The servos' backward-Euler torque clamp(offset - rate v+, +-power) and which servos are not saturated."""
+    raw = offset - rate * v_next
+    return np.minimum(np.maximum(raw, -power), power), (np.abs(raw) < power).astype(np.float64)
+
+
+@jit
 def _implicit_friction_force(jac_long, jac_lat, joint_damping, mass_matrix, momentum_free, v, dt, mu_long, mu_lat,
                              c_long, c_lat, normal_force, eps, newton_steps, shape, jac_head, head_coulomb,
-                             joint_coulomb, joint_eps):
+                             joint_coulomb, joint_eps, servo_offset, servo_rate, servo_power):
     mass_damped = mass_matrix + dt * np.diag(joint_damping)
     n_long, n_lat = mu_long * normal_force, mu_lat * normal_force
 
@@ -131,21 +139,26 @@ def _implicit_friction_force(jac_long, jac_lat, joint_damping, mass_matrix, mome
     if head_coulomb > 0.0:
         matrix += dt * _isotropic(jac_head @ v, head_coulomb, eps)[1] * (jac_head.T @ jac_head)
     _, joint_secant, _ = _coulomb(v, joint_coulomb, joint_eps, 0.0, 0.0, 1.0)
-    matrix += dt * np.diag(joint_secant)
-    v_next = np.linalg.solve(matrix, momentum_free)
+    # The servos as they stand at v: linear where not saturated, a constant torque where saturated.
+    servo, linear = _servo_torque(servo_offset, servo_rate, servo_power, v)
+    matrix += dt * np.diag(joint_secant + linear * servo_rate)
+    v_next = np.linalg.solve(matrix, momentum_free + dt * (linear * servo_offset + (1.0 - linear) * servo))
     for _ in range(newton_steps):
         f_long, f_lat = _wheel_forces(jac_long @ v_next, jac_lat @ v_next, mu_long, mu_lat, c_long, c_lat,
                                       normal_force, eps, shape)
         joint_force, _, joint_tangent = _coulomb(v_next, joint_coulomb, joint_eps, 0.0, 0.0, 1.0)
-        force = jac_long.T @ f_long + jac_lat.T @ f_lat - joint_force
+        servo, linear = _servo_torque(servo_offset, servo_rate, servo_power, v_next)
+        force = jac_long.T @ f_long + jac_lat.T @ f_lat - joint_force + servo
         _, _, t_long, t_lat = rates(v_next)
-        matrix = _add_damping(mass_damped, jac_long, jac_lat, t_long, t_lat, dt) + dt * np.diag(joint_tangent)
+        matrix = _add_damping(mass_damped, jac_long, jac_lat, t_long, t_lat, dt) + dt * np.diag(
+            joint_tangent + linear * servo_rate)
         if head_coulomb > 0.0:
             f_head, _, k_head = _isotropic(jac_head @ v_next, head_coulomb, eps)
             force += jac_head.T @ f_head
             matrix += dt * (jac_head.T @ k_head @ jac_head)
         v_next = v_next - np.linalg.solve(matrix, mass_damped @ v_next - momentum_free - dt * force)
-    return (mass_matrix @ v_next - momentum_free) / dt
+    servo = _servo_torque(servo_offset, servo_rate, servo_power, v_next)[0]
+    return (mass_matrix @ v_next - momentum_free) / dt - servo, servo  # the plant applies the servo torque itself
 
 
 def implicit_friction_force(jac_long, jac_lat, joint_damping, mass_matrix, momentum_free, v, dt, mu_long, mu_lat,
@@ -166,7 +179,8 @@ def implicit_friction_force(jac_long, jac_lat, joint_damping, mass_matrix, momen
         jac_long, jac_lat, joint_damping, mass_matrix, momentum_free, v, dt, mu_long, mu_lat, c_long, c_lat,
         normal_force, eps, newton_steps, np.asarray(shape, dtype=float),
         np.zeros((2, nv)) if jac_head is None else np.ascontiguousarray(jac_head, dtype=float), head_coulomb,
-        np.zeros(nv) if joint_coulomb is None else np.asarray(joint_coulomb, dtype=float), joint_eps)
+        np.zeros(nv) if joint_coulomb is None else np.asarray(joint_coulomb, dtype=float), joint_eps,
+        np.zeros(nv), np.zeros(nv), np.zeros(nv))[0]
 
 
 # Parameter layout of FrictionForces: the paper's five coefficients, eps; the effect terms (effects.py:
@@ -194,8 +208,8 @@ def toe_slice(num_wheels: int) -> slice:
 
 
 @jit
-def _friction_step(x, other_force, mass_matrix, dt, params, newton_steps, joint_in_parent, joint_in_child,
-                   wheel_module, wheel_offset, wheel_toe):
+def _friction_step(x, other_force, mass_matrix, dt, params, newton_steps, servo_command, servo_power, servo_gains,
+                   joint_in_parent, joint_in_child, wheel_module, wheel_offset, wheel_toe):
     nw = wheel_module.shape[0]
     toe = wheel_toe * np.exp(1j * params[PER_WHEEL + nw : PER_WHEEL + 2 * nw])
     _, direction, jacobian = _wheel_kinematics(x, joint_in_parent, joint_in_child, wheel_module, wheel_offset, toe)
@@ -212,34 +226,51 @@ def _friction_step(x, other_force, mass_matrix, dt, params, newton_steps, joint_
     jac_head = np.zeros((2, nv))  # the head centre's velocity: the planar joint's x, y rates
     jac_head[0, 0] = 1.0
     jac_head[1, 1] = 1.0
+    # The servo PID's command u_n = Kp (theta - q) + Kd (theta_dot - q_dot) + Ki z at the step's start becomes
+    # its backward-Euler torque Kp (theta - q - dt v+) + Kd (theta_dot - v+) + Ki z = u_n + Kd q_dot - (Kd + dt Kp) v+.
+    kp, kd = servo_gains
+    servo_offset = np.zeros(nv)
+    servo_rate = np.zeros(nv)
+    power = np.zeros(nv)
+    servo_offset[3:] = servo_command + kd * v[3:]
+    servo_rate[3:] = kd + dt * kp
+    power[3:] = servo_power
     return _implicit_friction_force(jac_long, jac_lat, joint_damping, mass_matrix, mass_matrix @ v + dt * other_force,
                                     v, dt, params[MU_LONG], params[MU_LAT], params[C_LONG], params[C_LAT],
                                     params[PER_WHEEL : PER_WHEEL + nw], params[EPS], newton_steps, params[SHAPE],
-                                    jac_head, params[HEAD_MU] * params[HEAD_NORMAL], joint_coulomb, JOINT_EPS_RAD_S)
+                                    jac_head, params[HEAD_MU] * params[HEAD_NORMAL], joint_coulomb, JOINT_EPS_RAD_S,
+                                    servo_offset, servo_rate, power)
 
 
 class FrictionForces(LeafSystem):
     """The model's friction as one generalized force on the planar plant, implicit in time:
     the wheels' (Eqs. 4-5), the failed joints' viscous friction c_joint (section 3) and the friction
-    terms of the candidate effects (effects.py).
+    terms of the candidate effects (effects.py). The servos' torque is part of the same implicit step.
 
-    Inputs `plant_state` [q; v] and `servo_torque` (13, what the servos apply this step); output
-    `generalized_force` for the plant's applied_generalized_force port (friction plus the explicit
-    forces of user effects). The five coefficients, eps,
-    the effect terms, which joints have failed and each wheel's normal force are numeric parameters: a
-    run changes them in its context without rebuilding anything. Gravity (a tilted floor) and a
-    user effect's explicit force (`extra_forces`) enter as known forces of the step.
+    Inputs `plant_state` [q; v], `servo_command` (13, the PID's command sampled at the step's start) and
+    `servo_power` (13, each servo's torque limit). Outputs `generalized_force` for the plant's
+    applied_generalized_force port (friction plus the explicit forces of user effects) and
+    `servo_torque` for its actuation port: the servos' torque at the end of the step, the command with
+    its proportional and derivative parts taken at the step's end velocity (backward Euler, as SAP
+    treats PD actuators), clamped to the servo power. That makes the servos stable at any step, so the
+    step is set by accuracy alone. The five coefficients, eps, the effect terms, which joints have
+    failed and each wheel's normal force are numeric parameters: a run changes them in its context
+    without rebuilding anything. Gravity (a tilted floor) and a user effect's explicit force
+    (`extra_forces`) enter as known forces of the step.
     """
 
     NEWTON_STEPS = 2
 
-    def __init__(self, plant, geometry: ChainGeometry, friction: Friction, sgn_smoothing_m_s: float):
+    def __init__(self, plant, geometry: ChainGeometry, friction: Friction, sgn_smoothing_m_s: float, *,
+                 servo_gains=(0.0, 0.0)):
+        """servo_gains: the servo PID's (Kp, Kd), which the implicit step needs."""
         super().__init__()
         self._plant = plant
         self._plant_context = plant.CreateDefaultContext()
         self._payload_applied = (0.0, 0.0)
         self._geometry = geometry.arrays
         self._dt = plant.time_step()
+        self._servo_gains = np.array(servo_gains, dtype=float)
         nq = plant.num_positions()
         self._num_wheels = len(geometry.wheel_module)
         normal = geometry.module_mass[geometry.wheel_module] * GRAVITY_M_S2
@@ -252,9 +283,23 @@ class FrictionForces(LeafSystem):
         )
         # Explicit generalized forces of user effects, f(x) -> (nv,); set per run by effects.apply_effects.
         self.extra_forces = []
+        # Gravity has a component in the plane of motion only on a tilted floor; set by effects.apply_effects.
+        self.gravity_in_plane = False
         self.DeclareVectorInputPort("plant_state", 2 * nq)
-        self.DeclareVectorInputPort("servo_torque", NUM_JOINTS)
-        self.DeclareVectorOutputPort("generalized_force", nq, self._calc_generalized_force)
+        self.DeclareVectorInputPort("servo_command", NUM_JOINTS)
+        self.DeclareVectorInputPort("servo_power", NUM_JOINTS)
+        # Both outputs come from one solve, cached per step.
+        step = self.DeclareCacheEntry(
+            "implicit_step",
+            ValueProducer(allocate=lambda: AbstractValue.Make(np.zeros(nq + NUM_JOINTS)), calc=self._calc_step),
+            {self.all_sources_ticket()})
+        self._step = step
+        self.DeclareVectorOutputPort("generalized_force", nq,
+                                     lambda context, out: out.SetFromVector(step.Eval(context)[:nq]),
+                                     prerequisites_of_calc={step.ticket()})
+        self.DeclareVectorOutputPort("servo_torque", NUM_JOINTS,
+                                     lambda context, out: out.SetFromVector(step.Eval(context)[nq:]),
+                                     prerequisites_of_calc={step.ticket()})
 
     @staticmethod
     def pack(friction: Friction, sgn_smoothing_m_s: float) -> np.ndarray:
@@ -274,7 +319,7 @@ class FrictionForces(LeafSystem):
             raise ValueError("the implicit friction needs sgn_smoothing_m_s > 0")
         self.parameters(context)[: EPS + 1] = self.pack(friction, sgn_smoothing_m_s)
 
-    def _calc_generalized_force(self, context, output):
+    def _calc_step(self, context, value):
         x = self.get_input_port(0).Eval(context)
         params = context.get_numeric_parameter(self._param_index).get_value()
         plant, plant_context = self._plant, self._plant_context
@@ -283,12 +328,14 @@ class FrictionForces(LeafSystem):
             set_payload(plant, plant_context, int(payload[1]), payload[0])
             self._payload_applied = payload
         plant.SetPositionsAndVelocities(plant_context, x)
-        other = plant.CalcGravityGeneralizedForces(plant_context) - plant.CalcBiasTerm(plant_context)
-        other[3:] += self.get_input_port(1).Eval(context)
+        other = -plant.CalcBiasTerm(plant_context)
+        if self.gravity_in_plane:
+            other += plant.CalcGravityGeneralizedForces(plant_context)
         extra = sum((force(x) for force in self.extra_forces), np.zeros(len(other)))
-        # The plant applies gravity, the bias term and the servo torques itself; the extra forces only
-        # reach it through this output.
-        output.SetFromVector(
-            extra + _friction_step(x, other + extra, plant.CalcMassMatrix(plant_context), self._dt, params,
-                                   self.NEWTON_STEPS, *self._geometry)
-        )
+        # The plant applies gravity and the bias term itself; the extra forces only reach it through this output.
+        friction, servo = _friction_step(x, other + extra, plant.CalcMassMatrix(plant_context), self._dt, params,
+                                         self.NEWTON_STEPS, self.get_input_port(1).Eval(context),
+                                         self.get_input_port(2).Eval(context), self._servo_gains, *self._geometry)
+        step = value.get_mutable_value()
+        step[: len(other)] = extra + friction
+        step[len(other):] = servo[3:]

@@ -1,8 +1,9 @@
 """Per-joint PID servos (HS5645MG, torque-limited) and the failure switch (paper section 3).
 
 A working joint i gets u_i = clamp(Kp e_i + Ki sum(e_i) dt + Kd de_i/dt, -e_max_i, e_max_i) with
-e_i = theta_i - q_i: a discrete PID sampled at the plant's step (the servo is a digital one),
-explicit in the plant state, which is stable for these gains at steps of a few milliseconds.
+e_i = theta_i - q_i: a discrete PID sampled at the plant's step (the servo is a digital one). The
+torque the plant receives takes the proportional and derivative parts at the step's end (backward
+Euler, solved with the friction in friction.FrictionForces), so the servos are stable at any step.
 e_max_i, the servo's power, is the value of the `servo_power` source (kept in the context):
 1.19 N m (the SDF's effort limit) while the joint works.
 
@@ -10,16 +11,13 @@ The failure switch acts on the context at the failure time: the failed joint's s
 zero, so its PID no longer reaches the joint, and the joint's viscous friction c_joint (a parameter
 of friction.FrictionForces) turns on. The plant's joint limits (+-38 deg, constraints of the
 discrete SAP solver) supply the restoring torque at the limits that the paper's joint-limit PD
-controller provides. The servos run no Python during a time step.
+controller provides.
 """
 
 from __future__ import annotations
 
 import numpy as np
-from pydrake.symbolic import MakeVectorVariable
-from pydrake.symbolic import max as symbolic_max
-from pydrake.symbolic import min as symbolic_min
-from pydrake.systems.primitives import ConstantVectorSource, LinearSystem, Multiplexer, SymbolicVectorSystem
+from pydrake.systems.primitives import ConstantVectorSource, LinearSystem, Multiplexer
 
 from .config import NUM_JOINTS, Failure, Servo
 from .friction import FAILED, FREE, LOCKED, WORKING
@@ -69,7 +67,11 @@ class FailureSwitch:
 
 
 def add_servos(builder, rc1, desired_state_port, servo: Servo, time_step: float):
-    """Add the PID servos and their power (torque limit) stage; returns (servo_power system, torque port)."""
+    """Add the PID servos and their power (torque limit) source; returns (servo_power system, command port).
+
+    The command u_n is the PID sampled at the step's start; friction.FrictionForces turns it into the
+    torque the plant receives (its proportional and derivative parts at the step's end, clamped to the power).
+    """
     plant = rc1.plant
     nq = plant.num_positions()
     n = NUM_JOINTS
@@ -97,22 +99,7 @@ def add_servos(builder, rc1, desired_state_port, servo: Servo, time_step: float)
     # context, so the failure switch changes it per run, and the default context is a working robot.
     power = builder.AddSystem(ConstantVectorSource(rc1.effort_limit))
     power.set_name("servo_power")
-    command = builder.AddSystem(Multiplexer([n, n]))
-    command.set_name("servo_command_and_power")
-    u = MakeVectorVariable(n, "u")
-    limit = MakeVectorVariable(n, "power")
-    clamp = builder.AddSystem(
-        SymbolicVectorSystem(
-            input=np.concatenate([u, limit]),
-            output=[symbolic_min(symbolic_max(u[i], -limit[i]), limit[i]) for i in range(n)],
-        )
-    )
-    clamp.set_name("servo_torque_limit")
     builder.Connect(desired_state_port, inputs.get_input_port(0))
     builder.Connect(plant.get_state_output_port(), inputs.get_input_port(1))
     builder.Connect(inputs.get_output_port(), pid.get_input_port())
-    builder.Connect(pid.get_output_port(), command.get_input_port(0))
-    builder.Connect(power.get_output_port(), command.get_input_port(1))
-    builder.Connect(command.get_output_port(), clamp.get_input_port())
-    builder.Connect(clamp.get_output_port(), plant.get_actuation_input_port())
-    return power, clamp.get_output_port()
+    return power, pid.get_output_port()

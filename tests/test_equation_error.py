@@ -19,7 +19,7 @@ def test_inverse_dynamics_of_the_simulators_own_states_recovers_the_wheel_fricti
     friction prediction does) makes the wheels slip; with the simulator's states at its own step (the velocity
     change of a step and the velocity it ends with, as the implicit friction sees them), the base rows
     are linear in the coefficients and the bounded least squares gives them back."""
-    scenario = Scenario(gait=Gait(amplitude_deg=30.0, phase_step_deg=0.0, frequency_deg_s=360.0), numerics=Numerics(log_period_s=5e-4),
+    scenario = Scenario(gait=Gait(amplitude_deg=30.0, phase_step_deg=0.0, frequency_deg_s=360.0), numerics=Numerics(time_step_s=5e-4, log_period_s=5e-4),
                         stop=Stop(line_x_m=None, revolutions=None, time_limit_s=2.5))
     run = simulate(scenario=scenario)
     q, v = run.state[:, :16], run.state[:, 16:]

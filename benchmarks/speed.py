@@ -1,0 +1,185 @@
+"""Speed: the project's four targets measured in one table (issue 8).
+
+    python benchmarks/speed.py [--only single,batch,identification,diagnosis] [--workers 2] [--repeats 3]
+                               [--json benchmarks/out/speed.json]
+
+1. single: the nominal run and the joint-7 failure (the default Scenario, Diagram and Simulator reused,
+   best of --repeats): wall time, real-time factor, how far the final head position is from a converged
+   run of the same model (time step / 4) in % of the distance travelled, and the wall time of the
+   project's independent SciPy implementation (reference.py) on the same case in this process.
+2. batch: the paper's sweep (no failure and joints 1-13, five trials each: 70 runs) through the
+   executor with 1 and with --workers processes (process start and Diagram builds included).
+3. identification: on a synthesized identification campaign (3 s trials), AVS from the paper's manual
+   values (10 iterations) against the program fit and the equation-error fit: trial simulations each
+   needed to reach AVS's Eq. 6 error (the scoring replays are not counted), and wall times.
+4. diagnosis: `rc1 diagnose` (every candidate effect) on the shipped 21-trial campaign.
+
+Each section prints as it finishes; the table at the end gives every figure with its target.
+"""
+
+import argparse
+import dataclasses
+import json
+import os
+import platform
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from rc1_drake.config import REPO_ROOT, Failure, Scenario, Stop
+from rc1_drake.executor import make_executor
+from rc1_drake.protocol import Session
+from rc1_drake.reference import simulate_reference
+
+SECTIONS = ("single", "batch", "identification", "diagnosis")
+
+
+def _moved_pct(end, reference_end, start) -> float:
+    return 100 * float(np.linalg.norm(end - reference_end) / np.linalg.norm(reference_end - start))
+
+
+def single(args) -> list:
+    rows = []
+    for name, failures in {"nominal": [], "joint 7": [Failure(joint=7)]}.items():
+        scenario = Scenario(failures=failures)
+        session = Session(scenario)
+        session.simulate(scenario)  # first run: numba's compiled kernels load
+        run = min((session.simulate(scenario) for _ in range(args.repeats)), key=lambda r: r.wall_time_s)
+        n = scenario.numerics
+        fine = dataclasses.replace(scenario, numerics=dataclasses.replace(n, time_step_s=n.time_step_s / 4))
+        converged = Session(fine).simulate(fine)
+        error = _moved_pct(run.head_xy[-1], converged.head_xy[-1], converged.head_xy[0])
+        ref = simulate_reference(scenario, run.geometry, joint_path=(run.t, run.q), rtol=1e-5, atol=1e-7)
+        print(f"single {name}: {run.t[-1]:.2f} s simulated in {run.wall_time_s:.3f} s "
+              f"({run.t[-1] / run.wall_time_s:.0f}x real time), {error:.2f}% from the run at dt/4; "
+              f"SciPy reference {ref.wall_time_s:.1f} s", flush=True)
+        rows += [
+            (f"{name} run, wall (s)", run.wall_time_s, "<= 0.25", run.wall_time_s <= 0.25),
+            (f"{name} run, x real time", run.t[-1] / run.wall_time_s, ">= 40", run.t[-1] / run.wall_time_s >= 40),
+            (f"{name} run, from converged (%)", error, "<= 1", error <= 1.0),
+            (f"{name} run, SciPy reference / Drake wall", ref.wall_time_s / run.wall_time_s, "> 1",
+             ref.wall_time_s > run.wall_time_s),
+        ]
+    return rows
+
+
+def batch(args) -> list:
+    from rc1_drake.sweep import make_jobs, run_sweep, single_failure_sets
+
+    jobs = make_jobs(failure_sets=single_failure_sets(), trials=5, seed=0)
+    rate = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        for workers in sorted({1, args.workers}):
+            start = time.perf_counter()
+            with make_executor(workers=workers) as executor:
+                rows = run_sweep(jobs, Path(tmp) / f"sweep{workers}.jsonl", executor=executor, progress=False)
+            wall = time.perf_counter() - start
+            failed = sum(r["status"] != "ok" for r in rows)
+            rate[workers] = len(jobs) / wall
+            print(f"batch: {len(jobs)} runs on {workers} worker(s) in {wall:.1f} s ({rate[workers]:.2f} runs/s, "
+                  f"{failed} failed)", flush=True)
+    wall = len(jobs) / rate[args.workers]
+    scaling = rate[args.workers] / rate[1]
+    return [
+        (f"paper sweep, 70 runs on {args.workers} workers (s)", wall, "<= 20", wall <= 20),
+        ("paper sweep, runs/s on 1 worker", rate[1], "", None),
+        (f"paper sweep, runs/s on {args.workers} workers", rate[args.workers], "", None),
+        (f"paper sweep, scaling 1 -> {args.workers} workers", scaling, ">= 1.8", scaling >= 1.8),
+    ]
+
+
+def identification(args) -> list:
+    from rc1_drake.identify import (PAPER_MANUAL, CampaignResiduals, Eq6Objective, avs, fit_program,
+                                    identify_equation_error, screen)
+    from rc1_drake.measurements import load_campaign
+    from rc1_drake.synthesize import IDENTIFICATION_DESIGN, synthesize_campaign
+
+    with tempfile.TemporaryDirectory() as tmp, make_executor(workers=args.workers) as executor:
+        synthesize_campaign(Path(tmp) / "c", design=IDENTIFICATION_DESIGN, seed=8,
+                            stop=Stop(line_x_m=None, revolutions=None, time_limit_s=3.0))
+        campaign = load_campaign(Path(tmp) / "c")
+        score = Eq6Objective(campaign.trials, executor=executor)  # scoring only: not counted
+
+        start = time.perf_counter()
+        objective = Eq6Objective(campaign.trials, executor=executor)
+        result = avs(objective, start=PAPER_MANUAL, iterations=10)
+        avs_wall, target = time.perf_counter() - start, result.error
+        print(f"identification: AVS {result.start_error:.2f}% -> {target:.2f}% in {result.simulations} trial "
+              f"simulations, {avs_wall:.0f} s", flush=True)
+
+        start = time.perf_counter()
+        residuals = CampaignResiduals(campaign.trials, executor=executor)
+        fitted = screen(residuals, PAPER_MANUAL)[0]
+        reached = []
+
+        def on_iteration(friction, simulations):
+            if not reached and score(friction) <= target:
+                reached.append((simulations, time.perf_counter() - start))
+
+        fit_program(residuals, start=PAPER_MANUAL, parameters=fitted, max_iterations=10, on_iteration=on_iteration)
+        program = reached[0] if reached else (residuals.simulations, float("inf"))
+        print(f"identification: program fit reached {target:.2f}% after "
+              f"{program[0] if reached else 'never (of ' + str(program[0]) + ')'} trial simulations", flush=True)
+
+        start = time.perf_counter()
+        equation = identify_equation_error(campaign)
+        eq_wall = time.perf_counter() - start
+        eq_error = score(equation.friction)
+        print(f"identification: equation error {eq_error:.2f}% with 0 trial simulations in {eq_wall:.1f} s", flush=True)
+    sims = result.simulations
+    return [
+        ("AVS (10 iterations): trial simulations", sims, "", None),
+        ("AVS: wall (s)", avs_wall, "", None),
+        ("program fit: simulations to AVS's error", program[0] if reached else float("inf"), f"<= {sims / 5:.0f}",
+         bool(reached) and program[0] <= sims / 5),
+        ("program fit: wall to AVS's error (s)", program[1], "", None),
+        ("equation error: simulations (Eq. 6 error reached)", 0, f"<= {sims / 5:.0f}", eq_error <= target),
+        ("equation error: Eq. 6 error (%) vs AVS's", eq_error, f"<= {target:.2f}", eq_error <= target),
+    ]
+
+
+def diagnosis(args) -> list:
+    from rc1_drake.diagnose import diagnose
+    from rc1_drake.measurements import load_campaign
+
+    campaign = load_campaign(REPO_ROOT / "data" / "paper_campaign")
+    start = time.perf_counter()
+    result = diagnose(campaign, workers=args.workers)
+    wall = time.perf_counter() - start
+    print(f"diagnosis: {len(campaign.trials)} trials, {result.simulations} replays, {wall:.0f} s, verdict "
+          f"{result.verdict}", flush=True)
+    return [(f"diagnosis, every candidate, {len(campaign.trials)} trials (min)", wall / 60, "<= 10", wall <= 600),
+            ("diagnosis: replays", result.simulations, "", None)]
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--only", default=",".join(SECTIONS), help=f"comma-separated, of {', '.join(SECTIONS)}")
+    parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--json", default=None, help="also write the table here")
+    args = parser.parse_args()
+    chosen = [s.strip() for s in args.only.split(",") if s.strip()]
+    unknown = [s for s in chosen if s not in SECTIONS]
+    if unknown:
+        parser.error(f"--only: unknown section {unknown[0]!r} (choose from {', '.join(SECTIONS)})")
+    machine = (f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
+               f"python {platform.python_version()}")
+    print(f"machine: {machine}")
+    rows = []
+    for section in chosen:
+        rows += globals()[section](args)
+    print(f"\n{'figure':52} {'measured':>10} {'target':>10}  met")
+    for name, value, target, met in rows:
+        print(f"{name:52} {value:>10.3g} {target:>10}  {'' if met is None else ('yes' if met else 'NO')}")
+    if args.json:
+        Path(args.json).parent.mkdir(parents=True, exist_ok=True)
+        Path(args.json).write_text(json.dumps({"machine": machine, "rows": [
+            {"figure": n, "measured": float(v), "target": t, "met": None if m is None else bool(m)}
+            for n, v, t, m in rows]}, indent=1) + "\n")
+
+
+if __name__ == "__main__":
+    main()
