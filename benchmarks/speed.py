@@ -127,7 +127,8 @@ def identification(args) -> list:
         equation = identify_equation_error(campaign)
         eq_wall = time.perf_counter() - start
         eq_error = score(equation.friction)
-        print(f"identification: equation error {eq_error:.2f}% with 0 trial simulations in {eq_wall:.1f} s", flush=True)
+        print(f"identification: equation error {eq_error:.2f}% with 0 trial simulations in {eq_wall:.1f} s "
+              f"({equation.samples_used} of {equation.samples} camera samples passed its slip gate)", flush=True)
     sims = result.simulations
     return [
         ("AVS (10 iterations): trial simulations", sims, "", None),
