@@ -285,9 +285,9 @@ class FrictionForces(LeafSystem):
         self.extra_forces = []
         # Gravity has a component in the plane of motion only on a tilted floor; set by effects.apply_effects.
         self.gravity_in_plane = False
-        self.DeclareVectorInputPort("plant_state", 2 * nq)
-        self.DeclareVectorInputPort("servo_command", NUM_JOINTS)
-        self.DeclareVectorInputPort("servo_power", NUM_JOINTS)
+        self._inputs = (self.DeclareVectorInputPort("plant_state", 2 * nq),
+                        self.DeclareVectorInputPort("servo_command", NUM_JOINTS),
+                        self.DeclareVectorInputPort("servo_power", NUM_JOINTS))
         # Both outputs come from one solve, cached per step.
         step = self.DeclareCacheEntry(
             "implicit_step",
@@ -320,7 +320,8 @@ class FrictionForces(LeafSystem):
         self.parameters(context)[: EPS + 1] = self.pack(friction, sgn_smoothing_m_s)
 
     def _calc_step(self, context, value):
-        x = self.get_input_port(0).Eval(context)
+        state_port, command_port, power_port = self._inputs
+        x = state_port.Eval(context)
         params = context.get_numeric_parameter(self._param_index).get_value()
         plant, plant_context = self._plant, self._plant_context
         payload = (params[PAYLOAD_KG], params[PAYLOAD_MODULE])
@@ -331,11 +332,11 @@ class FrictionForces(LeafSystem):
         other = -plant.CalcBiasTerm(plant_context)
         if self.gravity_in_plane:
             other += plant.CalcGravityGeneralizedForces(plant_context)
-        extra = sum((force(x) for force in self.extra_forces), np.zeros(len(other)))
         # The plant applies gravity and the bias term itself; the extra forces only reach it through this output.
+        extra = sum((force(x) for force in self.extra_forces), np.zeros(len(other))) if self.extra_forces else 0.0
         friction, servo = _friction_step(x, other + extra, plant.CalcMassMatrix(plant_context), self._dt, params,
-                                         self.NEWTON_STEPS, self.get_input_port(1).Eval(context),
-                                         self.get_input_port(2).Eval(context), self._servo_gains, *self._geometry)
+                                         self.NEWTON_STEPS, command_port.Eval(context), power_port.Eval(context),
+                                         self._servo_gains, *self._geometry)
         step = value.get_mutable_value()
-        step[: len(other)] = extra + friction
+        step[: len(other)] = friction + extra
         step[len(other):] = servo[3:]
