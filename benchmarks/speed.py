@@ -26,18 +26,13 @@ import tempfile
 import time
 from pathlib import Path
 
-import numpy as np
-
 from rc1_drake.config import REPO_ROOT, Failure, Scenario, Stop
 from rc1_drake.executor import make_executor
 from rc1_drake.protocol import Session
 from rc1_drake.reference import simulate_reference
+from single_run import moved  # benchmarks/ is on the path when this script runs
 
 SECTIONS = ("single", "batch", "identification", "diagnosis")
-
-
-def _moved_pct(end, reference_end, start) -> float:
-    return 100 * float(np.linalg.norm(end - reference_end) / np.linalg.norm(reference_end - start))
 
 
 def single(args) -> list:
@@ -50,7 +45,7 @@ def single(args) -> list:
         n = scenario.numerics
         fine = dataclasses.replace(scenario, numerics=dataclasses.replace(n, time_step_s=n.time_step_s / 4))
         converged = Session(fine).simulate(fine)
-        error = _moved_pct(run.head_xy[-1], converged.head_xy[-1], converged.head_xy[0])
+        error = float(moved(run.head_xy[-1], converged.head_xy[-1], run.head_xy[0]))
         ref = simulate_reference(scenario, run.geometry, joint_path=(run.t, run.q), rtol=1e-5, atol=1e-7)
         print(f"single {name}: {run.t[-1]:.2f} s simulated in {run.wall_time_s:.3f} s "
               f"({run.t[-1] / run.wall_time_s:.0f}x real time), {error:.2f}% from the run at dt/4; "

@@ -163,7 +163,7 @@ def _implicit_friction_force(jac_long, jac_lat, joint_damping, mass_matrix, mome
 
 def implicit_friction_force(jac_long, jac_lat, joint_damping, mass_matrix, momentum_free, v, dt, mu_long, mu_lat,
                             c_long, c_lat, normal_force, eps, newton_steps, *, shape=PAPER_SHAPE, jac_head=None,
-                            head_coulomb=0.0, joint_coulomb=None, joint_eps=0.01):
+                            head_coulomb=0.0, joint_coulomb=None, joint_eps=0.01, servo=None):
     """Generalized friction force of one backward-Euler step (module docstring).
 
     jac_long, jac_lat: (W, nv) wheel velocity Jacobians along the rolling and lateral axes;
@@ -173,14 +173,18 @@ def implicit_friction_force(jac_long, jac_lat, joint_damping, mass_matrix, momen
     (effects.py; defaults are the paper's model): `shape` (PAPER_SHAPE's layout), an isotropic
     Coulomb drag `head_coulomb` (N) on the point whose (2, nv) velocity Jacobian is `jac_head`, and
     dry joint friction `joint_coulomb` (nv,) in N m, its sign smoothed at `joint_eps` rad/s.
+    `servo` = (offset, rate, power), each (nv,): servos in the same step, with torque
+    clamp(offset - rate v+, +-power) (FrictionForces' backward-Euler PID); then returns (force, servo torque).
     """
     nv = len(v)
-    return _implicit_friction_force(
+    offset, rate, power = (np.zeros(nv),) * 3 if servo is None else (np.asarray(s, dtype=float) for s in servo)
+    force, torque = _implicit_friction_force(
         jac_long, jac_lat, joint_damping, mass_matrix, momentum_free, v, dt, mu_long, mu_lat, c_long, c_lat,
         normal_force, eps, newton_steps, np.asarray(shape, dtype=float),
         np.zeros((2, nv)) if jac_head is None else np.ascontiguousarray(jac_head, dtype=float), head_coulomb,
         np.zeros(nv) if joint_coulomb is None else np.asarray(joint_coulomb, dtype=float), joint_eps,
-        np.zeros(nv), np.zeros(nv), np.zeros(nv))[0]
+        offset, rate, power)
+    return force if servo is None else (force, torque)
 
 
 # Parameter layout of FrictionForces: the paper's five coefficients, eps; the effect terms (effects.py:
@@ -293,7 +297,6 @@ class FrictionForces(LeafSystem):
             "implicit_step",
             ValueProducer(allocate=lambda: AbstractValue.Make(np.zeros(nq + NUM_JOINTS)), calc=self._calc_step),
             {self.all_sources_ticket()})
-        self._step = step
         self.DeclareVectorOutputPort("generalized_force", nq,
                                      lambda context, out: out.SetFromVector(step.Eval(context)[:nq]),
                                      prerequisites_of_calc={step.ticket()})

@@ -22,7 +22,7 @@ from .protocol import Run, Session, rest_state
 from .smoothing import smoothing_spline
 
 # Stiff tracking in place of the paper's kinematic joints. Servo and wheel friction are solved implicitly
-# together (friction.FrictionForces); trials replay alike at 0.25 and 0.5 ms (Eq. 6 within 0.2%), but at
+# together (friction.FrictionForces); trials replay alike at 0.25 and 0.5 ms (Eq. 6 within 0.25%), but at
 # 1 ms these stiff servos chatter on noisy measured angles (cause not found: predicting the joint limits
 # in the implicit step did not remove it; noise-free angles replay well at 1 ms). The torque
 # is capped at 3 N m, 2.5 times the real servo's: a measured motion that needs more is inconsistent

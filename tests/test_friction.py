@@ -60,6 +60,25 @@ def test_implicit_step_solves_backward_euler(seed):
     assert np.allclose(tau, expected, rtol=1e-8, atol=1e-9)
 
 
+def test_implicit_servos_solve_backward_euler_within_their_power():
+    """Servos in the step (FrictionForces' PID): the torque is clamp(offset - rate v+, +-power) at the step's
+    end velocity, one servo saturated and the others not, and the friction balances the rest of the step."""
+    mass, jl, jt, v = _random_problem(5)
+    n, dt, eps = len(v), 1e-3, 1e-3
+    normal = np.full(len(jl), N)
+    offset = np.array([0.0, 0.0, 0.3, -0.2, 5.0, 0.1])  # the fifth asks for far more than its power
+    rate = np.array([0.0, 0.0, 0.25, 0.25, 0.25, 0.25])  # Kd + dt Kp
+    power = np.array([0.0, 0.0, 1.19, 1.19, 1.19, 1.19])
+    p_free = mass @ v + dt * np.linspace(-1, 1, n)
+    tau, torque = implicit_friction_force(jl, jt, np.zeros(n), mass, p_free, v, dt, normal_force=normal, eps=eps,
+                                          newton_steps=8, servo=(offset, rate, power), **PAPER)
+    v_next = np.linalg.solve(mass, p_free + dt * (tau + torque))
+    assert np.allclose(torque, np.clip(offset - rate * v_next, -power, power), rtol=1e-9, atol=1e-12)
+    assert torque[4] == 1.19 and np.all(np.abs(torque[2:4]) < 1.19) and torque[5] != 0.0
+    f_long, f_lat = wheel_friction_forces(jl @ v_next, jt @ v_next, normal_force=normal, eps=eps, **PAPER)
+    assert np.allclose(tau, jl.T @ f_long + jt.T @ f_lat, rtol=1e-8, atol=1e-9)
+
+
 def test_implicit_step_tends_to_the_explicit_law_for_small_steps():
     mass, jl, jt, v = _random_problem(3)
     v = v * 20  # sliding well outside the smoothing zone
