@@ -1,7 +1,8 @@
 """Finding the missing physics: detection rates and false alarms over seeds and strengths.
 
     python benchmarks/diagnosis.py [--seeds 3] [--time-limit-s 3] [--workers 2] [--effects NAME,...]
-                                   [--strengths 0.5,1,2] [--hold-friction] [--out benchmarks/out/diagnosis.jsonl]
+                                   [--strengths 0.5,1,2] [--hold-friction] [--design none,J7x2]
+                                   [--out benchmarks/out/diagnosis.jsonl]
 
 For every effect the replays can see, campaigns of the diagnosis design (a no-failure trial and two
 joint-7 failures, like tests/test_diagnose.py) are synthesized with the effect hidden at each strength
@@ -14,16 +15,30 @@ friction at the truth, as the tests do (short trials identify no friction coeffi
 
 import argparse
 import json
+import re
 import tempfile
 import time
 from pathlib import Path
 
-from rc1_drake.config import FRICTION_NAMES, Friction, Stop
+from rc1_drake.config import FRICTION_NAMES, Friction, Gait, Stop
 from rc1_drake.diagnose import diagnose
 from rc1_drake.measurements import load_campaign
 from rc1_drake.synthesize import Case, synthesize_campaign
 
-DESIGN = [Case([], 1), Case([7], 2)]
+DESIGN = "none,J7x2"
+
+
+def parse_design(text: str) -> list:
+    """'none,none@70,J7x2,J13': a case per item — the failed joint (J<n>) or none, an optional gait
+    frequency in deg/s (@f) and a trial count (x<k>)."""
+    cases = []
+    for item in text.split(","):
+        m = re.fullmatch(r"(none|J(\d+))(?:@([\d.]+))?(?:x(\d+))?", item.strip())
+        if m is None:
+            raise SystemExit(f"--design: cannot read {item!r} (expected none or J<joint>, then @<deg/s>, x<trials>)")
+        cases.append(Case([int(m[2])] if m[2] else [], int(m[4] or 1),
+                          gait=Gait(frequency_deg_s=float(m[3])) if m[3] else None))
+    return cases
 REFERENCE = {  # a clearly visible strength on DESIGN's 3 s trials (diagnose.probe_visibility)
     "wheel_toe": ("wheel_toe_deg", 1.5),
     "joint_coulomb_friction": ("joint_coulomb_Nm", 0.3),
@@ -36,10 +51,10 @@ REFERENCE = {  # a clearly visible strength on DESIGN's 3 s trials (diagnose.pro
 }
 
 
-def one(effect, strength, seed, seconds, workers, held=()) -> dict:
+def one(effect, strength, seed, seconds, workers, held=(), design=DESIGN) -> dict:
     effects = {} if effect is None else {REFERENCE[effect][0]: REFERENCE[effect][1] * strength}
     with tempfile.TemporaryDirectory() as tmp:
-        synthesize_campaign(tmp, design=DESIGN, effects=effects, seed=seed,
+        synthesize_campaign(tmp, design=parse_design(design), effects=effects, seed=seed,
                             stop=Stop(line_x_m=None, revolutions=None, time_limit_s=seconds))
         campaign = load_campaign(tmp)
         start = time.perf_counter()
@@ -51,7 +66,7 @@ def one(effect, strength, seed, seconds, workers, held=()) -> dict:
         if key in result.final_coordinates:  # the final model's estimate (after every round's refit)
             v, se = result.final_coordinates[key]
             inside = abs(v - value) <= 1.96 * se
-    return {"effect": effect, "strength": strength, "seed": seed, "verdict": result.verdict,
+    return {"effect": effect, "strength": strength, "seed": seed, "design": design, "verdict": result.verdict,
             "accepted": result.accepted, "first": first.name if first else None, "inside_interval": inside,
             "estimate": result.final_coordinates.get(REFERENCE[effect][0]) if effect else None,
             "first_round": [[c.name, c.status, c.coordinates, (c.simulated or {}).get("held_out_reduction")]
@@ -68,6 +83,7 @@ def main():
     parser.add_argument("--effects", default=",".join(REFERENCE))
     parser.add_argument("--strengths", default="0.5,1,2")
     parser.add_argument("--hold-friction", action="store_true", help="hold the friction at the truth (as the tests)")
+    parser.add_argument("--design", default=DESIGN, help="the trials, e.g. none,none@70,J7x2,J13")
     parser.add_argument("--out", type=Path, default=Path("benchmarks/out/diagnosis.jsonl"))
     args = parser.parse_args()
     args.out.parent.mkdir(parents=True, exist_ok=True)
@@ -82,7 +98,7 @@ def main():
     for n, job in enumerate(jobs):
         if job in done:
             continue
-        row = one(*job, args.time_limit_s, args.workers, FRICTION_NAMES if args.hold_friction else ())
+        row = one(*job, args.time_limit_s, args.workers, FRICTION_NAMES if args.hold_friction else (), args.design)
         done[job] = row
         with args.out.open("a") as f:
             f.write(json.dumps(row) + "\n")

@@ -7,8 +7,9 @@ The method, linearized where that is safe and checked by simulation where it dec
 1. Linearize. At the current model, the stacked standardized residuals r0 of every trial's replay
    (identify.trial_residual: final position, camera path or yaw rate) and their Jacobian by forward
    differences: one column per friction coefficient, one per candidate coordinate at its probe step
-   (a small, clearly visible strength: EffectParameter.probe). The covariance that the potentiometer
-   noise in the replays' input causes is taken once (identify._input_noise_covariance).
+   (a small, clearly visible strength: EffectParameter.probe). What the replay itself gets wrong is
+   taken once, by a parametric bootstrap on each trial's noise-free twin (replay_error): its mean is
+   subtracted from every residual of that trial (the replay's bias), its covariance is the input noise.
 2. Fit. For today's model (the friction coefficients these data identify, identify.screen's rule) and
    for it plus each candidate: the bounded least squares of r0 + J d (a Drake MathematicalProgram), the
    parameters' sandwich covariance with the input noise, their Wald test against 0 (the nested value),
@@ -26,7 +27,7 @@ The method, linearized where that is safe and checked by simulation where it dec
    confirms it, and the remaining candidates ranked there.
 
 The verdict: `effect_found` when effects were accepted and what is left is consistent with the noise
-(the final positions' chi-squared with the hand and input noise); `no_missing_effect` when nothing was
+(the final positions' chi-squared with the hand and input noise, the replay's bias taken off); `no_missing_effect` when nothing was
 accepted and the misfit is consistent with the noise; `ambiguous` when two candidates explain the
 held-out trials alike (the runner-up's simulated held-out sum of squares within AMBIGUOUS_RATIO of the best's),
 with the kind of trial that would tell them apart; `unexplained` when a misfit remains that no
@@ -57,7 +58,7 @@ P_MISFIT = 1e-3  # the final positions' misfit is "consistent with the noise" ab
 MAX_ROUNDS = 3
 REFINED_CANDIDATES = 3  # the best candidates by the linear ranking, refined by a secant step before the checks
 TRUST_STEPS = 4.0  # an effect coordinate's linear fit moves at most this many probe steps per round
-INPUT_NOISE_SAMPLES = 4  # resampled replays per trial for the input-noise covariance (pooled per case)
+INPUT_NOISE_SAMPLES = 6  # bootstrap replays per trial for the replay's bias and input noise (replay_error)
 FINAL_SIGMA_M = idf.RESIDUAL_SIGMAS["final_m"]
 
 
@@ -104,7 +105,7 @@ def model_at(friction: Friction, effects: Dict[str, float], coordinates: List[Co
 # ---------------------------------------------------------------------------------------------- simulation
 
 def _evaluate(trial, friction, effects) -> tuple:
-    """One replay, scored: (standardized residuals, Eq. 6 error %, yaw-rate fit %)."""
+    """One replay, scored: (standardized residuals, Eq. 6 error %, yaw-rate fit %, its end time s)."""
     from .compare import fit_percent, simulator_error
 
     run = idf._replay(trial, friction, effects)
@@ -112,7 +113,42 @@ def _evaluate(trial, friction, effects) -> tuple:
     inside = t <= run.t[-1] + 1e-9
     fit = fit_percent(trial.head_yaw_rate[inside], np.interp(t[inside], run.t, run.head_yaw_rate))
     return (idf.trial_residual(trial, run), simulator_error(run.head_xy[-1], trial.final_head_xy,
-                                                            trial.initial_head_pose[:2]), fit)
+                                                            trial.initial_head_pose[:2]), fit, float(run.t[-1]))
+
+
+def replay_error(trial, friction, effects, until: float, samples: int, seed: int) -> tuple:
+    """What replaying this trial gets wrong, by a parametric bootstrap on its noise-free twin
+    (synthesize.noise_free_twin, made by the model): `samples` draws of the trial's potentiometer noise
+    (the RMS of its measured minus smoothed angles) on the twin's angles, each replayed at the model and
+    scored against the twin up to `until` (the trial's own replay's end), so that the draws line up
+    with the trial's residuals. Returns (bias, covariance): the draws' mean residual — the replay's own
+    miss on this motion, from its start state, its smoothing of noisy angles and its stiff servos
+    (measured on 3 s no-failure trials: the noise alone shifts the start transient by what a 0.3 deg
+    toe would, trial after trial) — and their covariance (the input noise; a joint-2 failure, which
+    circles, replays chaotically: there it is large). None when the draws do not line up."""
+    from .replay import Replayer
+    from .synthesize import noise_free_twin
+
+    twin = noise_free_twin(trial, friction=friction, effects=effects)
+    if len(twin.t) != len(trial.t):
+        return None
+    t = twin.t - twin.t[0]
+    final = np.array([np.interp(until, t, twin.camera[:, i]) for i in (0, 1)])  # the twin's own head there
+    camera = None
+    if trial.camera is not None:  # the trial's camera misses, so that the samples kept are the trial's
+        camera = twin.camera.copy()
+        camera[np.isnan(trial.camera[:, 0])] = np.nan
+    scored = dataclasses.replace(twin, camera=camera, final_head_xy=final)
+    replayer, rng = Replayer(twin), np.random.default_rng(seed)
+    sigma = idf._replayer(trial).angle_noise_rad()
+    draws = [idf.trial_residual(scored, replayer.run_with_angles(friction, effects, twin.q + replayer.angle_noise(
+        rng, sigma)), until=until) for _ in range(samples)]
+    if len({len(d) for d in draws}) != 1:
+        return None
+    draws = np.array(draws)
+    deviation = draws - draws.mean(axis=0)
+    covariance = deviation.T @ deviation / max(len(draws) - 1, 1)
+    return draws.mean(axis=0), covariance
 
 
 def _replay_and_score(trial, friction, effects) -> tuple:
@@ -149,8 +185,9 @@ class Linearization:
     eq6: List[float]  # per trial, at (friction, effects)
     yaw_fit: List[float]
     columns: Dict[str, List[np.ndarray]]  # coordinate name -> per-trial d r / d coordinate
-    noise: List[np.ndarray]  # per trial: input-noise covariance of its residuals
+    noise: List[np.ndarray]  # per trial: covariance of its residuals from the input noise (replay_error)
     weights: Optional[np.ndarray] = None  # per trial (trial_weights of the noise, by default)
+    bias: Optional[List[np.ndarray]] = None  # per trial: the replay's own miss (replay_error), taken off r0
 
     def __post_init__(self):
         if self.weights is None:
@@ -165,6 +202,18 @@ class Linearization:
         r = np.concatenate([w_k * self.r0[k] for k, w_k in zip(trials, w, strict=True)])
         channels = np.concatenate([idf.residual_channels(self.r0[k]) for k in trials])
         return x, r, channels, [len(self.r0[k]) for k in trials]
+
+    def corrected(self, k: int, residual: np.ndarray) -> np.ndarray:
+        """Trial k's residuals of a replay with the replay's bias taken off (only the final position's when
+        this replay stops elsewhere than the one the bias was taken on)."""
+        bias = None if self.bias is None else self.bias[k]
+        if bias is None:
+            return residual
+        if len(residual) == len(bias):
+            return residual - bias
+        out = residual.copy()
+        out[:2] -= bias[:2]
+        return out
 
     def weighted_rms(self, residuals: List[np.ndarray]) -> float:
         return float(math.sqrt(self.weighted_sum_of_squares(residuals) / sum(len(r) for r in residuals)))
@@ -221,11 +270,16 @@ def fit(lin: Linearization, names: List[str]) -> Fit:
     xtx = x.T @ x
     inv = np.linalg.pinv(xtx) if len(names) else np.zeros((0, 0))
     middle = np.zeros_like(xtx)
+    input_noise = []  # per trial: what its input noise puts into the normal equations
     start = 0
     for k, n in enumerate(counts):
         xk = x[start:start + n]
-        middle += xk.T @ (np.diag(variance[start:start + n]) + lin.weights[k] ** 2 * lin.noise[k]) @ xk
+        middle += xk.T @ np.diag(variance[start:start + n]) @ xk
+        input_noise.append(lin.weights[k] ** 2 * xk.T @ lin.noise[k] @ xk)
         start += n
+    # Pooled per case: one trial's few bootstrap draws (replay_error) estimate it loosely.
+    for trial in lin.trials:
+        middle += np.mean([m for m, other in zip(input_noise, lin.trials, strict=True) if other.case == trial.case], axis=0)
     cov = inv @ middle @ inv
     per_trial = [part / w for part, w in zip(np.split(e, np.cumsum(counts)[:-1]), lin.weights, strict=True)]
     held, held_steps = [], []
@@ -265,7 +319,7 @@ def trial_weights(trials, noise) -> np.ndarray:
 
 
 def _pooled_per_case(trials, values) -> Dict[str, float]:
-    """Per case: the mean of its trials' `values` (the resampled replays of one trial are too few to trust)."""
+    """Per case: the mean of its trials' `values` (one trial's few bootstrap replays are too few to trust)."""
     pooled: Dict[str, list] = {}
     for trial, value in zip(trials, values, strict=True):
         pooled.setdefault(trial.case, []).append(value)
@@ -285,7 +339,7 @@ def wald_p(fitted: Fit, names: List[str]) -> float:
 
 def _final_position_variances(lin: Linearization) -> Dict[str, float]:
     """Per case: the final position's variance per axis, standardized (hand noise 1 plus the input noise,
-    pooled per case: the four resampled replays of one trial estimate a variance too loosely)."""
+    pooled per case: one trial's few bootstrap replays estimate a variance too loosely)."""
     pooled = _pooled_per_case(lin.trials, [float(np.mean(np.diag(noise)[:2])) for noise in lin.noise])
     return {case: 1.0 + v for case, v in pooled.items()}
 
@@ -481,7 +535,7 @@ class Diagnosis:
 def linearize(trials, friction, effects, candidates: List[str], evaluator: Evaluator, *, noise=None,
               input_noise_samples=INPUT_NOISE_SAMPLES, held=()) -> Linearization:
     """Residuals at (friction, effects) and their forward-difference columns for the friction
-    coefficients, the model's own effects and the candidates; the input noise when `noise` is None."""
+    coefficients, the model's own effects and the candidates; the replays' own error (replay_error: their bias and input noise) when `noise` is None."""
     coords = friction_coordinates(friction, held)
     for name in list(dict.fromkeys([*(e.name for e in active(effects)), *candidates])):
         coords += effect_coordinates(name, effects)
@@ -495,17 +549,30 @@ def linearize(trials, friction, effects, candidates: List[str], evaluator: Evalu
                 jobs.append((t, *model))
                 where.append((c.name, k))
     outputs = evaluator.map(_evaluate, jobs, f"linearizing at the model ({len(coords)} directions)")
+    bias = None
     if noise is None:
-        noise_jobs = [(t, friction, effects, input_noise_samples, k, len(base[k][0])) for k, t in enumerate(trials)]
-        noise = evaluator.map(idf._input_noise_covariance, noise_jobs, "input noise")
-        evaluator.simulations += len(noise_jobs) * (input_noise_samples - 1)  # map counted one per trial
+        jobs = [(t, friction, effects, base[k][3], input_noise_samples, k) for k, t in enumerate(trials)]
+        errors = evaluator.map(replay_error, jobs, "the replays' own error (noise-free twins, resampled)")
+        evaluator.simulations += len(jobs) * input_noise_samples  # map counted one per trial: the twin
+        bias, noise = [], []
+        for k, error in enumerate(errors):
+            n = len(base[k][0])
+            if error is None or len(error[0]) != n:
+                bias.append(None)
+                noise.append(np.zeros((n, n)))
+                continue
+            bias.append(error[0])
+            # The bias is a mean of `samples` draws: taking it off adds 1 / samples of their covariance.
+            noise.append(error[1] * (1.0 + 1.0 / input_noise_samples))
     columns = {c.name: [np.zeros(len(b[0])) for b in base] for c in coords}
     for (name, k), o in zip(where, outputs, strict=True):
         if len(o[0]) == len(base[k][0]):  # a replay that stops elsewhere has no column: 0
             columns[name][k] = (o[0] - base[k][0]) / _signed_step(next(c for c in coords if c.name == name))
-    return Linearization(trials=list(trials), friction=friction, effects=dict(effects), coordinates=coords,
-                         r0=[b[0] for b in base], eq6=[b[1] for b in base], yaw_fit=[b[2] for b in base],
-                         columns=columns, noise=list(noise))
+    lin = Linearization(trials=list(trials), friction=friction, effects=dict(effects), coordinates=coords,
+                        r0=[b[0] for b in base], eq6=[b[1] for b in base], yaw_fit=[b[2] for b in base],
+                        columns=columns, noise=list(noise), bias=bias)
+    lin.r0 = [lin.corrected(k, r) for k, r in enumerate(lin.r0)]
+    return lin
 
 
 def _acts_in_failed_joints_only(c: Coordinate) -> bool:
@@ -526,7 +593,8 @@ def held_out_by_simulation(lin: Linearization, fitted: Fit, evaluator: Evaluator
     out = evaluator.map(_evaluate, jobs, f"held-out replays: {label}")
     ids = [t.trial_id for t in lin.trials]
     _, effects = model_at(lin.friction, lin.effects, coords, fitted.values)
-    return HeldOutScore(label=label, effects=effects, sum_of_squares=lin.weighted_sum_of_squares([o[0] for o in out]),
+    return HeldOutScore(label=label, effects=effects,
+                        sum_of_squares=lin.weighted_sum_of_squares([lin.corrected(k, o[0]) for k, o in enumerate(out)]),
                         eq6_pct=dict(zip(ids, [o[1] for o in out], strict=True)),
                         yaw_fit_pct=dict(zip(ids, [o[2] for o in out], strict=True)))
 
@@ -690,7 +758,7 @@ def diagnose(campaign, *, friction: Optional[Friction] = None, effects=None, can
         friction_out, effects_out = lin.friction, lin.effects
         final_fit = fit(lin, model_names)
         report, where = _where_it_fails(campaign, chosen, friction_out, effects_out, evaluator)
-        simulated = [idf.trial_residual(t, report.runs[t.trial_id]) for t in chosen]
+        simulated = [lin.corrected(k, idf.trial_residual(t, report.runs[t.trial_id])) for k, t in enumerate(chosen)]
         final_coordinates = {n: [float(lin.coordinate(n).value), float(se)] for n, se in zip(
             final_fit.names, final_fit.standard_errors, strict=True)}
         left = misfit(lin, simulated, len(model_names))  # the final model's replays, not the linear guess
@@ -738,10 +806,11 @@ def _relinearize(lin: Linearization, friction, effects, evaluator, what="residua
         if len(o[0]) != len(r):  # it now stops elsewhere: its old residual and columns stay
             r0.append(r)
             continue
-        r0.append(o[0])
+        new = lin.corrected(k, o[0])
+        r0.append(new)
         if step @ step > 0:
             jacobian = np.column_stack([columns[n][k] for n in names])
-            jacobian += np.outer(o[0] - r - jacobian @ step, step) / (step @ step)
+            jacobian += np.outer(new - r - jacobian @ step, step) / (step @ step)
             for j, n in enumerate(names):
                 columns[n][k] = jacobian[:, j]
     coords = [dataclasses.replace(c, value=v) for c, v in zip(lin.coordinates, values, strict=True)]

@@ -272,7 +272,7 @@ RESIDUAL_PERIOD_S = 0.1
 FINAL_CHANNEL, PATH_CHANNEL = 0, 1  # the final position (by hand); the camera path or yaw rate over time
 
 
-def trial_residual(trial, run) -> np.ndarray:
+def trial_residual(trial, run, until=None) -> np.ndarray:
     """Standardized residuals of one replay: the final head position and, every RESIDUAL_PERIOD_S, the
     head's x and y where the camera saw it, or its yaw rate when the trial has no camera.
 
@@ -280,13 +280,18 @@ def trial_residual(trial, run) -> np.ndarray:
     the friction (stiff replay servos are not the robot's servos, and the smoothed potentiometer noise
     shakes the head), so with a camera that channel adds systematic error that biases the fit more than
     it informs it; the camera's positions match to ~2 mm at the true coefficients (measured on a 3 s
-    joint-7 trial)."""
+    joint-7 trial).
+
+    `until`: the residuals of the run up to that time (s from the start; the final position there), in
+    place of its end — so that a replay of the trial's twin lines up with the trial's own replay."""
     t = trial.t - trial.t[0]
     step = max(1, int(round(RESIDUAL_PERIOD_S / (t[1] - t[0]))))
     keep = np.zeros(len(t), dtype=bool)
     keep[::step] = True
-    keep &= t <= run.t[-1] + 1e-9
-    parts = [(run.head_xy[-1] - trial.final_head_xy) / RESIDUAL_SIGMAS["final_m"]]
+    end = run.t[-1] if until is None else until
+    keep &= t <= end + 1e-9
+    final = run.head_xy[-1] if until is None else np.array([np.interp(end, run.t, run.head_xy[:, i]) for i in (0, 1)])
+    parts = [(final - trial.final_head_xy) / RESIDUAL_SIGMAS["final_m"]]
     if trial.camera is not None:
         seen = keep & ~np.isnan(trial.camera[:, 0])
         for i in (0, 1):

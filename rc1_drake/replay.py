@@ -19,7 +19,7 @@ from .config import Failure, Friction, Numerics, Scenario, Servo, Start, Stop
 from .gait import serpenoid
 from .measurements import Trial
 from .protocol import Run, Session, rest_state
-from .smoothing import smoothing_spline
+from .smoothing import smoothing_fit
 
 # Stiff tracking in place of the paper's kinematic joints. Servo and wheel friction are solved implicitly
 # together (friction.FrictionForces); trials replay alike at 0.25 and 0.5 ms (Eq. 6 within 0.25%), but at
@@ -37,6 +37,7 @@ class JointReference:
     q: np.ndarray  # (N, 13) smoothed angles (failed joints: 0, unused)
     q_dot: np.ndarray  # (N, 13)
     trajectory: object  # PiecewisePolynomial of q
+    noise_rad: float  # the potentiometers' noise the smoothing finds (smoothing_fit), pooled over the joints
 
 
 def joint_reference(trial: Trial, measured_q=None) -> JointReference:
@@ -45,12 +46,15 @@ def joint_reference(trial: Trial, measured_q=None) -> JointReference:
     measured = trial.q if measured_q is None else measured_q
     q = np.zeros_like(trial.q)
     q_dot = np.zeros_like(trial.q)
+    variances = []
     for j in trial.working_joints:
-        spline = smoothing_spline(t, measured[:, j - 1])
+        spline, variance = smoothing_fit(t, measured[:, j - 1])
         q[:, j - 1] = spline(t)
         q_dot[:, j - 1] = spline.derivative()(t)
+        variances.append(variance)
     trajectory = PiecewisePolynomial.CubicHermite(t, q.T, q_dot.T)
-    return JointReference(t=t, q=q, q_dot=q_dot, trajectory=trajectory)
+    return JointReference(t=t, q=q, q_dot=q_dot, trajectory=trajectory,
+                          noise_rad=float(np.sqrt(np.mean(variances))) if variances else 0.0)
 
 
 def replay_scenario(trial: Trial, friction: Friction, effects=None, numerics=None) -> Scenario:
@@ -95,19 +99,24 @@ class Replayer:
         return self.session.simulate(scenario, initial=self.initial)
 
     def angle_noise_rad(self) -> float:
-        """The potentiometers' noise as the smoothing sees it: RMS of measured minus smoothed angles."""
-        working = [j - 1 for j in self.trial.working_joints]
-        if not working:
-            return 0.0
-        return float(np.sqrt(np.mean((self.trial.q[:, working] - self.reference.q[:, working]) ** 2)))
+        """The potentiometers' noise as the smoothing sees it (JointReference.noise_rad)."""
+        return self.reference.noise_rad
 
     def run_resampled(self, friction: Friction, effects, rng) -> Run:
         """A replay from the measured angles with fresh noise of angle_noise_rad() added: how much the
         replay moves with the noise the potentiometers put into its input (a parametric bootstrap)."""
+        return self.run_with_angles(friction, effects, self.trial.q + self.angle_noise(rng, self.angle_noise_rad()))
+
+    def angle_noise(self, rng, sigma_rad: float) -> np.ndarray:
+        """Gaussian noise of `sigma_rad` on the working joints' samples (zero on the failed joints')."""
+        noise = np.zeros_like(self.trial.q)
         working = [j - 1 for j in self.trial.working_joints]
-        noisy = self.trial.q.copy()
-        noisy[:, working] += rng.normal(0.0, self.angle_noise_rad(), (len(noisy), len(working)))
-        reference = joint_reference(self.trial, noisy)
+        noise[:, working] = rng.normal(0.0, sigma_rad, (len(noise), len(working)))
+        return noise
+
+    def run_with_angles(self, friction: Friction, effects, measured_q: np.ndarray) -> Run:
+        """A replay from `measured_q` in place of the trial's angles (same samples), this Diagram reused."""
+        reference = joint_reference(self.trial, measured_q)
         source = self.session.built.diagram.GetSubsystemByName("joint_reference")
         source.UpdateTrajectory(reference.trajectory)
         try:

@@ -107,4 +107,13 @@ def gcv_lambda(x, y) -> float:
 
 def smoothing_spline(x, y):
     """The GCV cubic smoothing spline of y(x) (a scipy BSpline)."""
-    return make_smoothing_spline(x, y, lam=gcv_lambda(x, y))
+    return smoothing_fit(x, y)[0]
+
+
+def smoothing_fit(x, y) -> tuple:
+    """(the GCV cubic smoothing spline of y(x), the samples' noise variance |y - f|^2 / tr(I - A)): the
+    residuals' mean square alone is low by the degrees of freedom the spline spends (Green & Silverman
+    1994, sec. 3.4)."""
+    lam = gcv_lambda(x, y)
+    rss, trace = gcv_terms(np.diff(np.asarray(x, dtype=float)), np.asarray(y, dtype=float), lam)
+    return make_smoothing_spline(x, y, lam=lam), rss / trace

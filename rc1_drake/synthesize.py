@@ -115,6 +115,31 @@ def synthesize_campaign(folder, *, design=PAPER_DESIGN, friction=None, effects=N
     return Campaign(path=folder, trials=trials)
 
 
+def noise_free_twin(trial: Trial, *, friction: Friction, effects=None) -> Trial:
+    """`trial` as the model (friction, effects) makes it with no sensor noise: the trial's gait, failures,
+    start pose and sample times, driven by the servos for the trial's whole duration (whatever its stop
+    rule, so that the samples line up with the trial's), with a camera. Replaying the twin shows what the
+    replay itself misses on this kind of motion (diagnose.replay_error)."""
+    from .effects import commanded_gait
+    from .gait import serpenoid
+    from .kinematics import module_yaws
+
+    effects = dict(effects or {})
+    end = float(trial.t[-1] - trial.t[0])
+    period = round(float(np.median(np.diff(trial.t))), 9)  # exact: a log sample must not slip a step
+    q0, _ = serpenoid(0.0, commanded_gait(trial.gait, effects))
+    x, y, head_yaw = (float(v) for v in trial.initial_head_pose)
+    scenario = Scenario(gait=trial.gait, friction=friction, effects=effects,
+                        failures=[Failure(joint=j) for j in trial.failed_joints],
+                        start=Start(x_m=x, y_m=y, heading_deg=math.degrees(head_yaw + module_yaws(0.0, q0).mean())),
+                        stop=Stop(line_x_m=None, revolutions=None, time_limit_s=end),
+                        numerics=Numerics(log_period_s=period))
+    run = Session(scenario).simulate(scenario)
+    silent = dataclasses.replace(Noise().scaled(0.0), camera_dropout=0.0)
+    twin = _measure(run, scenario, trial.trial_id, silent, np.random.default_rng(0), True, period)
+    return dataclasses.replace(twin, notes=f"noise-free twin of {trial.trial_id}")
+
+
 def _check_within_servos(case: Case) -> None:
     """Rc1Error for a gait RC1's servos cannot drive: the truth model does not cap joint speed."""
     from .gait import serpenoid_parameters

@@ -1,5 +1,6 @@
 """Finding the missing physics. The linear machinery (bounded fit, held-out predictions, Wald test,
-misfit test, look-alike detection) against hand-built data; then the user's demand, data with a hidden
+misfit test, look-alike detection) against hand-built data; the replay's own error (a noise-free trial is
+its own twin, and its replay's miss is all bias); then the user's demand, data with a hidden
 effect: a visible effect (a wheel toe) is found, ranked first and
 accepted with its parameter inside its interval and the held-out error at least halved; an effect that
 other candidates explain about as well on these trials (a head drag) gets no other effect accepted in
@@ -18,7 +19,7 @@ from rc1_drake import diagnose as dg
 from rc1_drake.config import FRICTION_NAMES, Friction, Gait, Stop
 from rc1_drake.effects import LIBRARY, Effect, EffectParameter, register
 from rc1_drake.measurements import Trial, load_campaign
-from rc1_drake.synthesize import Case, synthesize_campaign
+from rc1_drake.synthesize import Case, Noise, noise_free_twin, synthesize_campaign
 
 # ------------------------------------------------------------------------------------------ linear machinery
 
@@ -128,6 +129,24 @@ def test_a_few_outlying_trials_are_named_and_the_rest_tested_without_them():
         residual[k][:2] = [40.0, 0.0]
     left = dg.misfit(_linearization(columns, residual, trials=20), residual, 0)
     assert len(left.outliers) == 4 and not left.consistent
+
+
+def test_a_noise_free_trial_is_its_own_twin_and_its_replays_error_is_all_bias(tmp_path):
+    silent = dataclasses.replace(Noise().scaled(0.0), camera_dropout=0.0)
+    campaign = synthesize_campaign(tmp_path, design=[Case([], 1), Case([7], 1)], seed=3, noise=silent,
+                                   stop=Stop(line_x_m=None, revolutions=None, time_limit_s=2.0))
+    for trial in campaign.trials:
+        twin = noise_free_twin(trial, friction=Friction())
+        np.testing.assert_array_equal(twin.final_head_xy, trial.final_head_xy)
+        np.testing.assert_array_equal(twin.q, trial.q)  # NaN (the failed joint) included
+        np.testing.assert_array_equal(twin.camera, trial.camera)
+        residual, _, _, until = dg._evaluate(trial, Friction(), {})
+        bias, covariance = dg.replay_error(trial, Friction(), {}, until, 2, 0)
+        # The replay misses its own noise-free trial (measured: 1-2 mm) and the bootstrap sees exactly that:
+        # what is left once the bias is off is the potentiometer noise the smoothing finds in clean angles.
+        assert np.abs(residual).max() > 0.05
+        np.testing.assert_allclose(residual - bias, 0.0, atol=0.02)
+        assert np.abs(np.diag(covariance)).max() < 0.02**2
 
 
 def test_subspace_cosine():

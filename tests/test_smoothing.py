@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from scipy.interpolate import make_smoothing_spline
 
-from rc1_drake.smoothing import gcv_lambda, gcv_terms, smoothing_spline
+from rc1_drake.smoothing import gcv_lambda, gcv_terms, smoothing_fit, smoothing_spline
 
 
 def _dense(x, y, lam):
@@ -50,3 +50,18 @@ def test_the_smoothed_angle_is_closer_to_the_truth_than_the_samples():
     spline = smoothing_spline(t, truth + rng.normal(0, noise, len(t)))
     assert np.sqrt(np.mean((spline(t) - truth) ** 2)) < 0.5 * noise
     assert np.abs(spline.derivative()(t) - np.radians(38) * 2.44 * np.cos(2.44 * t))[50:-50].max() < 0.05  # 3% of the peak rate
+
+
+def test_the_noise_estimate_counts_the_splines_degrees_of_freedom():
+    rng = np.random.default_rng(2)
+    t = np.arange(0.0, 3.0, 0.01)
+    truth = np.radians(38) * np.sin(2.44 * t + 0.3)
+    noise = np.radians(0.25)
+    estimates, naive = [], []
+    for _ in range(40):
+        y = truth + rng.normal(0, noise, len(t))
+        spline, variance = smoothing_fit(t, y)
+        estimates.append(variance)
+        naive.append(np.mean((y - spline(t)) ** 2))
+    assert np.sqrt(np.mean(estimates)) == pytest.approx(noise, rel=0.03)  # unbiased (40 x 300 samples)
+    assert np.sqrt(np.mean(naive)) < 0.97 * noise  # the residuals' RMS alone is low
