@@ -39,6 +39,8 @@ def parse_design(text: str) -> list:
         cases.append(Case([int(m[2])] if m[2] else [], int(m[4] or 1),
                           gait=Gait(frequency_deg_s=float(m[3])) if m[3] else None))
     return cases
+
+
 REFERENCE = {  # a clearly visible strength on DESIGN's 3 s trials (diagnose.probe_visibility)
     "wheel_toe": ("wheel_toe_deg", 1.5),
     "joint_coulomb_friction": ("joint_coulomb_Nm", 0.3),

@@ -27,8 +27,8 @@ The method, linearized where that is safe and checked by simulation where it dec
    confirms it, and the remaining candidates ranked there.
 
 The verdict: `effect_found` when effects were accepted and what is left is consistent with the noise
-(the final positions' chi-squared with the hand and input noise, the replay's bias taken off); `no_missing_effect` when nothing was
-accepted and the misfit is consistent with the noise; `ambiguous` when two candidates explain the
+(the final positions' chi-squared with the hand and input noise, the replay's bias taken off);
+`no_missing_effect` when nothing was accepted and the misfit is consistent with the noise; `ambiguous` when two candidates explain the
 held-out trials alike (the runner-up's simulated held-out sum of squares within AMBIGUOUS_RATIO of the best's),
 with the kind of trial that would tell them apart; `unexplained` when a misfit remains that no
 candidate explains (any accepted effects are then reported as partial).
@@ -119,7 +119,7 @@ def _evaluate(trial, friction, effects) -> tuple:
 def replay_error(trial, friction, effects, until: float, samples: int, seed: int) -> tuple:
     """What replaying this trial gets wrong, by a parametric bootstrap on its noise-free twin
     (synthesize.noise_free_twin, made by the model): `samples` draws of the trial's potentiometer noise
-    (the RMS of its measured minus smoothed angles) on the twin's angles, each replayed at the model and
+    (as its smoothing estimates it: Replayer.angle_noise_rad) on the twin's angles, each replayed at the model and
     scored against the twin up to `until` (the trial's own replay's end), so that the draws line up
     with the trial's residuals. Returns (bias, covariance): the draws' mean residual — the replay's own
     miss on this motion, from its start state, its smoothing of noisy angles and its stiff servos
@@ -270,16 +270,11 @@ def fit(lin: Linearization, names: List[str]) -> Fit:
     xtx = x.T @ x
     inv = np.linalg.pinv(xtx) if len(names) else np.zeros((0, 0))
     middle = np.zeros_like(xtx)
-    input_noise = []  # per trial: what its input noise puts into the normal equations
     start = 0
     for k, n in enumerate(counts):
         xk = x[start:start + n]
-        middle += xk.T @ np.diag(variance[start:start + n]) @ xk
-        input_noise.append(lin.weights[k] ** 2 * xk.T @ lin.noise[k] @ xk)
+        middle += xk.T @ (np.diag(variance[start:start + n]) + lin.weights[k] ** 2 * lin.noise[k]) @ xk
         start += n
-    # Pooled per case: one trial's few bootstrap draws (replay_error) estimate it loosely.
-    for trial in lin.trials:
-        middle += np.mean([m for m, other in zip(input_noise, lin.trials, strict=True) if other.case == trial.case], axis=0)
     cov = inv @ middle @ inv
     per_trial = [part / w for part, w in zip(np.split(e, np.cumsum(counts)[:-1]), lin.weights, strict=True)]
     held, held_steps = [], []
@@ -535,7 +530,8 @@ class Diagnosis:
 def linearize(trials, friction, effects, candidates: List[str], evaluator: Evaluator, *, noise=None,
               input_noise_samples=INPUT_NOISE_SAMPLES, held=()) -> Linearization:
     """Residuals at (friction, effects) and their forward-difference columns for the friction
-    coefficients, the model's own effects and the candidates; the replays' own error (replay_error: their bias and input noise) when `noise` is None."""
+    coefficients, the model's own effects and the candidates; when `noise` is None, the replays' own error
+    (replay_error: their bias, taken off r0, and the input noise)."""
     coords = friction_coordinates(friction, held)
     for name in list(dict.fromkeys([*(e.name for e in active(effects)), *candidates])):
         coords += effect_coordinates(name, effects)
@@ -551,9 +547,9 @@ def linearize(trials, friction, effects, candidates: List[str], evaluator: Evalu
     outputs = evaluator.map(_evaluate, jobs, f"linearizing at the model ({len(coords)} directions)")
     bias = None
     if noise is None:
-        jobs = [(t, friction, effects, base[k][3], input_noise_samples, k) for k, t in enumerate(trials)]
-        errors = evaluator.map(replay_error, jobs, "the replays' own error (noise-free twins, resampled)")
-        evaluator.simulations += len(jobs) * input_noise_samples  # map counted one per trial: the twin
+        error_jobs = [(t, friction, effects, base[k][3], input_noise_samples, k) for k, t in enumerate(trials)]
+        errors = evaluator.map(replay_error, error_jobs, "the replays' own error (noise-free twins, resampled)")
+        evaluator.simulations += len(trials) * input_noise_samples  # map counted one per trial: the twin
         bias, noise = [], []
         for k, error in enumerate(errors):
             n = len(base[k][0])
