@@ -29,9 +29,9 @@ The method, linearized where that is safe and checked by simulation where it dec
 
 The verdict: `effect_found` when effects were accepted and what is left is consistent with the noise
 (the final positions' chi-squared with the hand and input noise, the replay's bias taken off);
-`no_missing_effect` when nothing was accepted and the misfit is consistent with the noise; `ambiguous` when two candidates explain the
-held-out trials alike (the runner-up's simulated held-out sum of squares within AMBIGUOUS_RATIO of the best's),
-with the kind of trial that would tell them apart; `unexplained` when a misfit remains that no
+`no_missing_effect` when nothing was accepted and the misfit is consistent with the noise; `ambiguous`
+when two candidates explain the held-out trials alike (the runner-up's simulated held-out sum of squares
+within AMBIGUOUS_RATIO of the best's), with the kind of trial that would tell them apart; `unexplained` when a misfit remains that no
 candidate explains (any accepted effects are then reported as partial).
 """
 

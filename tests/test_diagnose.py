@@ -181,10 +181,15 @@ def _diagnose(campaign, **kwargs):
 CIRCLING = [Case([], 1), Case([2], 2)]
 
 
+# raw_eq6_falls: False for the head drag, measured: the joint-2 replays' own miss of the final position grows
+# with the drag (their bias, 5 cm at 0.45), so their raw Eq. 6 error rises (6 -> 15%) while the
+# bias-corrected held-out residuals fall by more than half (asserted for both).
 @pytest.mark.slow
-@pytest.mark.parametrize("effect, key, value, design, seed", [("wheel_toe", "wheel_toe_deg", 1.5, DESIGN, 11),
-                                                              ("head_drag", "head_drag_mu", 0.5, CIRCLING, 1)])
-def test_a_visible_hidden_effect_is_ranked_first_accepted_and_recovered(tmp_path, effect, key, value, design, seed):
+@pytest.mark.parametrize("effect, key, value, design, seed, raw_eq6_falls", [
+    ("wheel_toe", "wheel_toe_deg", 1.5, DESIGN, 11, True),
+    ("head_drag", "head_drag_mu", 0.5, CIRCLING, 1, False)])
+def test_a_visible_hidden_effect_is_ranked_first_accepted_and_recovered(tmp_path, effect, key, value, design, seed,
+                                                                        raw_eq6_falls):
     result = _diagnose(_campaign(tmp_path, {key: value}, seed=seed, design=design))
     first = result.candidates[0]
     assert first.name == effect and first.accepted, result.rounds[0].table()
@@ -195,9 +200,7 @@ def test_a_visible_hidden_effect_is_ranked_first_accepted_and_recovered(tmp_path
     final, final_se = result.final_coordinates[key]
     assert abs(final - value) < 1.96 * final_se and final == pytest.approx(result.effects[key])
     assert first.simulated["held_out_sum_of_squares_after"] <= 0.5 * first.simulated["held_out_sum_of_squares_before"]
-    if effect == "head_drag":
-        # Measured: the joint-2 replays' own miss of the final position grows with the head drag (their bias,
-        # 5 cm at 0.45), so their raw Eq. 6 error rises (6 -> 15%) while the bias-corrected residuals fall.
+    if not raw_eq6_falls:
         return
     # Eq. 6 of a 2 s trial has a floor: the hand's 1 cm (mean |error| 1.25 cm in the plane) over ~0.4 m.
     floor = np.mean([100 * 0.0125 / np.linalg.norm(t.final_head_xy - t.initial_head_pose[:2]) for t in result._trials])
