@@ -10,7 +10,8 @@ failures for the head drag; --design for all) are synthesized with the effect hi
 (a multiple of its reference strength below) and each seed, and diagnosed with the whole library;
 campaigns with no hidden effect, on every design used, measure false alarms. A row per campaign streams
 to --out (rerunning resumes); the table gives, per effect and strength, how often it was accepted,
-ranked first, recovered inside its 95% interval, and how often another effect was accepted instead.
+ranked first, recovered inside its 95% interval, how often another effect was accepted instead, and
+how often the best candidate explained only part of the held-out error (not accepted).
 --hold-friction holds the friction at the truth, as the tests do (short trials identify no friction
 coefficient).
 """
@@ -77,6 +78,7 @@ def one(effect, strength, seed, seconds, workers, held=(), design=DESIGN) -> dic
             "estimate": estimate,
             "first_round": [[c.name, c.status, c.coordinates, (c.simulated or {}).get("held_out_reduction")]
                             for c in result.candidates],
+            "partial": [r.partial for r in result.rounds if r.partial],
             "final_effects": result.effects, "simulations": result.simulations,
             "wall_s": time.perf_counter() - start}
 
@@ -115,7 +117,7 @@ def main():
         print(f"[{n + 1}/{len(jobs)}] {effect or 'no effect'} x{strength:g} seed {seed} ({design}): "
               f"{row['verdict']}, accepted {row['accepted']}, first {row['first']}, {row['wall_s']:.0f} s", flush=True)
     print(f"\n{'hidden effect':<34}{'design':>11}{'strength':>9}{'accepted':>10}{'first':>7}{'in CI':>7}{'wrong':>7}"
-          f"{'mean s':>8}")
+          f"{'partial':>9}{'mean s':>8}")
     groups = {}
     for (effect, strength, _, design), row in done.items():
         groups.setdefault((effect, strength, design), []).append(row)
@@ -125,8 +127,9 @@ def main():
         first = sum(r["first"] == effect for r in rows) if effect else 0
         inside = sum(bool(r["inside_interval"]) for r in rows) if effect else 0
         wrong = sum(any(a != effect for a in r["accepted"]) for r in rows)
+        partial = sum(bool(r.get("partial")) for r in rows)
         print(f"{effect or 'none (false alarms)':<34}{design:>11}{strength:>9g}{hit:>7}/{n}{first:>5}/{n}"
-              f"{inside:>5}/{n}{wrong:>5}/{n}{sum(r['wall_s'] for r in rows) / n:>8.0f}")
+              f"{inside:>5}/{n}{wrong:>5}/{n}{partial:>7}/{n}{sum(r['wall_s'] for r in rows) / n:>8.0f}")
 
 
 if __name__ == "__main__":
