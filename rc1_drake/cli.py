@@ -574,7 +574,8 @@ def cmd_diagnose(args) -> int:
         print(r.table())
     print("\nVisibility: the final head position's change (cm) per probe step of each candidate, per case:")
     print(result.visibility_table())
-    print("\nError waterfall (Eq. 6 error and yaw-rate fit per case; held-out after the start):")
+    print("\nError waterfall (Eq. 6 error, the same with the replay's own miss on each trial's motion taken off, and"
+          " yaw-rate fit, per case; held-out after the start):")
     print(result.waterfall_table())
     for d in result.not_detectable:
         print(f"not detectable here: {d['name']}: {d['reason']}" + (f"; would be seen by {d['experiment']}"

@@ -225,6 +225,13 @@ class Linearization:
         out[:2] -= bias[:2]
         return out
 
+    def eq6_without_miss(self, k: int, corrected: np.ndarray) -> float:
+        """Paper Eq. 6 of trial k from its bias-corrected residuals: the final position's error with the
+        replay's own miss on this motion (replay_error) taken off, over the distance the head travelled."""
+        trial = self.trials[k]
+        travelled = float(np.linalg.norm(trial.final_head_xy - trial.initial_head_pose[:2]))
+        return 100.0 * FINAL_SIGMA_M * float(np.linalg.norm(corrected[:2])) / travelled
+
     def weighted_rms(self, residuals: List[np.ndarray]) -> float:
         return float(math.sqrt(self.weighted_sum_of_squares(residuals) / sum(len(r) for r in residuals)))
 
@@ -438,9 +445,12 @@ class HeldOutScore:
     sum_of_squares: float
     eq6_pct: Dict[str, float]  # trial -> Eq. 6 error
     yaw_fit_pct: Dict[str, float]
+    eq6_without_miss_pct: Dict[str, float]  # trial -> Eq. 6 error with the replay's own miss taken off
 
     def by_case(self, trials) -> Dict[str, dict]:
-        return _cases(trials, [self.eq6_pct[t.trial_id] for t in trials], [self.yaw_fit_pct[t.trial_id] for t in trials])
+        ids = [t.trial_id for t in trials]
+        return _cases(trials, [self.eq6_pct[i] for i in ids], [self.yaw_fit_pct[i] for i in ids],
+                      [self.eq6_without_miss_pct[i] for i in ids])
 
     def mean_eq6(self) -> float:
         return float(np.mean(list(self.eq6_pct.values())))
@@ -527,12 +537,15 @@ class Diagnosis:
         return "\n".join(lines)
 
     def waterfall_table(self) -> str:
+        """Per case and step: Eq. 6 error, the same with the replay's own miss taken off, yaw-rate fit."""
         cases = list(self.waterfall[0]["cases"]) if self.waterfall else []
-        lines = [f"{'model':<38}" + "".join(f"{c:>16}" for c in cases) + f"{'all trials':>12}"]
+        lines = [f"{'':<38}" + "".join(f"{'Eq.6 (miss off) fit':>26}" for _ in cases) + f"{'Eq.6 (miss off)':>20}",
+                 f"{'model':<38}" + "".join(f"{c:>26}" for c in cases) + f"{'all trials':>20}"]
         for step in self.waterfall:
-            cells = "".join(f"{step['cases'][c]['mean_eq6_error_pct']:>8.2f}% {step['cases'][c]['mean_yaw_rate_fit_pct']:>5.0f}%"
-                            for c in cases)
-            lines.append(f"{step['model']:<38}{cells}{step['mean_eq6_error_pct']:>11.2f}%")
+            cells = "".join(f"{v['mean_eq6_error_pct']:>9.2f}% ({v['mean_eq6_without_replay_miss_pct']:>6.2f}%)"
+                            f"{v['mean_yaw_rate_fit_pct']:>5.0f}%" for v in (step["cases"][c] for c in cases))
+            lines.append(f"{step['model']:<38}{cells}{step['mean_eq6_error_pct']:>9.2f}% "
+                         f"({step['mean_eq6_without_replay_miss_pct']:>6.2f}%)")
         return "\n".join(lines)
 
 
@@ -618,10 +631,12 @@ def held_out_by_simulation(lin: Linearization, fitted: Fit, evaluator: Evaluator
     out = evaluator.map(_evaluate, jobs, f"held-out replays: {label}")
     ids = [t.trial_id for t in lin.trials]
     _, effects = model_at(lin.friction, lin.effects, coords, fitted.values)
-    return HeldOutScore(label=label, effects=effects,
-                        sum_of_squares=lin.weighted_sum_of_squares([lin.corrected(k, o[0]) for k, o in enumerate(out)]),
+    corrected = [lin.corrected(k, o[0]) for k, o in enumerate(out)]
+    return HeldOutScore(label=label, effects=effects, sum_of_squares=lin.weighted_sum_of_squares(corrected),
                         eq6_pct=dict(zip(ids, [o[1] for o in out], strict=True)),
-                        yaw_fit_pct=dict(zip(ids, [o[2] for o in out], strict=True)))
+                        yaw_fit_pct=dict(zip(ids, [o[2] for o in out], strict=True)),
+                        eq6_without_miss_pct={i: lin.eq6_without_miss(k, r) for k, (i, r) in
+                                              enumerate(zip(ids, corrected, strict=True))})
 
 
 def screen_friction(lin: Linearization, names=FRICTION_NAMES, max_relative_error=0.3) -> List[str]:
@@ -676,7 +691,8 @@ def diagnose(campaign, *, friction: Optional[Friction] = None, effects=None, can
         free = screen_friction(lin, [n for n in FRICTION_NAMES if n not in held])
         start_step = {"model": "start (no refit)", "effects": dict(effects),
                       "mean_eq6_error_pct": float(np.mean(lin.eq6)),
-                      "cases": _cases(chosen, lin.eq6, lin.yaw_fit)}
+                      "mean_eq6_without_replay_miss_pct": float(np.mean(_without_miss(lin))),
+                      "cases": _cases(chosen, lin.eq6, lin.yaw_fit, _without_miss(lin))}
         rounds, accepted, waterfall = [], [], [start_step]
         model_names = list(free)  # the model's fitted parameters: the free friction, then the accepted effects'
         stop_reason = f"{max_rounds} rounds"
@@ -690,7 +706,9 @@ def diagnose(campaign, *, friction: Optional[Friction] = None, effects=None, can
             current = HeldOutScore(label=label + " (no refit)", effects=dict(lin.effects),
                                    sum_of_squares=lin.weighted_sum_of_squares(lin.r0),
                                    eq6_pct={t.trial_id: e for t, e in zip(chosen, lin.eq6, strict=True)},
-                                   yaw_fit_pct={t.trial_id: f for t, f in zip(chosen, lin.yaw_fit, strict=True)})
+                                   yaw_fit_pct={t.trial_id: f for t, f in zip(chosen, lin.yaw_fit, strict=True)},
+                                   eq6_without_miss_pct={t.trial_id: e for t, e in
+                                                         zip(chosen, _without_miss(lin), strict=True)})
             round_names, baseline, refit_note = model_names, current, "nothing to refit"
             if model_names:
                 base_fit = fit(lin, model_names)
@@ -830,16 +848,22 @@ def decide(results: List[CandidateResult]) -> tuple:
     return best.name, [], None
 
 
-def _cases(trials, eq6, fit_pct) -> Dict[str, dict]:
+def _without_miss(lin: Linearization) -> List[float]:
+    return [lin.eq6_without_miss(k, r) for k, r in enumerate(lin.r0)]
+
+
+def _cases(trials, eq6, fit_pct, without_miss) -> Dict[str, dict]:
     out: Dict[str, list] = {}
-    for t, e, f in zip(trials, eq6, fit_pct, strict=True):
-        out.setdefault(t.case, []).append((e, f))
+    for t, e, f, m in zip(trials, eq6, fit_pct, without_miss, strict=True):
+        out.setdefault(t.case, []).append((e, f, m))
     return {c: {"mean_eq6_error_pct": float(np.mean([v[0] for v in vs])),
-                "mean_yaw_rate_fit_pct": float(np.mean([v[1] for v in vs]))} for c, vs in out.items()}
+                "mean_yaw_rate_fit_pct": float(np.mean([v[1] for v in vs])),
+                "mean_eq6_without_replay_miss_pct": float(np.mean([v[2] for v in vs]))} for c, vs in out.items()}
 
 
 def _step(label, score: HeldOutScore, trials) -> dict:
     return {"model": label, "effects": score.effects, "mean_eq6_error_pct": score.mean_eq6(),
+            "mean_eq6_without_replay_miss_pct": float(np.mean(list(score.eq6_without_miss_pct.values()))),
             "held_out_sum_of_squares": score.sum_of_squares, "cases": score.by_case(trials)}
 
 

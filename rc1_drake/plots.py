@@ -173,13 +173,17 @@ def paths_grid_figure(rows, *, line_x_m=3.18):
 
 
 def waterfall_figure(waterfall):
-    """The error waterfall: mean held-out Eq. 6 error per case after each step of the diagnosis."""
+    """The error waterfall: mean held-out Eq. 6 error per case after each step of the diagnosis (bars), and
+    the same with the replay's own miss taken off (black ticks)."""
     cases = list(waterfall[0]["cases"])
     fig, ax = plt.subplots(figsize=(max(6, 1.6 * len(cases) + 2), 4))
     width = 0.8 / len(waterfall)
     for k, step in enumerate(waterfall):
         x = np.arange(len(cases)) + (k - (len(waterfall) - 1) / 2) * width
         ax.bar(x, [step["cases"][c]["mean_eq6_error_pct"] for c in cases], width, label=step["model"])
+        # The same with the replay's own miss on each trial's motion taken off (diagnose.replay_error).
+        ax.plot(x, [step["cases"][c]["mean_eq6_without_replay_miss_pct"] for c in cases], "_", ms=14, mew=2,
+                color="k", label="replay's own miss taken off" if k == 0 else None)
     ax.set_xticks(np.arange(len(cases)), cases)
     ax.set_ylabel("mean Eq. 6 error (%)")
     ax.set_title("error waterfall (held-out trials after the start)")
