@@ -228,9 +228,11 @@ class Linearization:
     def eq6_without_miss(self, k: int, corrected: np.ndarray) -> float:
         """Paper Eq. 6 of trial k from its bias-corrected residuals: the final position's error with the
         replay's own miss on this motion (replay_error) taken off, over the distance the head travelled."""
+        from .compare import simulator_error
+
         trial = self.trials[k]
-        travelled = float(np.linalg.norm(trial.final_head_xy - trial.initial_head_pose[:2]))
-        return 100.0 * FINAL_SIGMA_M * float(np.linalg.norm(corrected[:2])) / travelled
+        return simulator_error(trial.final_head_xy + FINAL_SIGMA_M * corrected[:2], trial.final_head_xy,
+                               trial.initial_head_pose[:2])
 
     def weighted_rms(self, residuals: List[np.ndarray]) -> float:
         return float(math.sqrt(self.weighted_sum_of_squares(residuals) / sum(len(r) for r in residuals)))
@@ -455,6 +457,9 @@ class HeldOutScore:
     def mean_eq6(self) -> float:
         return float(np.mean(list(self.eq6_pct.values())))
 
+    def mean_eq6_without_miss(self) -> float:
+        return float(np.mean(list(self.eq6_without_miss_pct.values())))
+
 
 @dataclasses.dataclass
 class Round:
@@ -629,14 +634,9 @@ def held_out_by_simulation(lin: Linearization, fitted: Fit, evaluator: Evaluator
         values = [c.value + d for c, d in zip(coords, fitted.held_out_steps[k], strict=True)]
         jobs.append((trial, *model_at(lin.friction, lin.effects, coords, values)))
     out = evaluator.map(_evaluate, jobs, f"held-out replays: {label}")
-    ids = [t.trial_id for t in lin.trials]
     _, effects = model_at(lin.friction, lin.effects, coords, fitted.values)
-    corrected = [lin.corrected(k, o[0]) for k, o in enumerate(out)]
-    return HeldOutScore(label=label, effects=effects, sum_of_squares=lin.weighted_sum_of_squares(corrected),
-                        eq6_pct=dict(zip(ids, [o[1] for o in out], strict=True)),
-                        yaw_fit_pct=dict(zip(ids, [o[2] for o in out], strict=True)),
-                        eq6_without_miss_pct={i: lin.eq6_without_miss(k, r) for k, (i, r) in
-                                              enumerate(zip(ids, corrected, strict=True))})
+    return _score(lin, label, effects, [lin.corrected(k, o[0]) for k, o in enumerate(out)], [o[1] for o in out],
+                  [o[2] for o in out])
 
 
 def screen_friction(lin: Linearization, names=FRICTION_NAMES, max_relative_error=0.3) -> List[str]:
@@ -689,10 +689,10 @@ def diagnose(campaign, *, friction: Optional[Friction] = None, effects=None, can
         lin = linearize(chosen, friction, effects, replayed, evaluator, input_noise_samples=input_noise_samples,
                         held=held)
         free = screen_friction(lin, [n for n in FRICTION_NAMES if n not in held])
-        start_step = {"model": "start (no refit)", "effects": dict(effects),
-                      "mean_eq6_error_pct": float(np.mean(lin.eq6)),
-                      "mean_eq6_without_replay_miss_pct": float(np.mean(_without_miss(lin))),
-                      "cases": _cases(chosen, lin.eq6, lin.yaw_fit, _without_miss(lin))}
+        start = _unrefitted(lin, "start (no refit)")
+        start_step = {"model": start.label, "effects": start.effects, "mean_eq6_error_pct": start.mean_eq6(),
+                      "mean_eq6_without_replay_miss_pct": start.mean_eq6_without_miss(),
+                      "cases": start.by_case(chosen)}
         rounds, accepted, waterfall = [], [], [start_step]
         model_names = list(free)  # the model's fitted parameters: the free friction, then the accepted effects'
         stop_reason = f"{max_rounds} rounds"
@@ -703,12 +703,7 @@ def diagnose(campaign, *, friction: Optional[Friction] = None, effects=None, can
                 stop_reason = "what the accepted effects leave is consistent with the noise"
                 break
             label = "today's model" if not accepted else "+ " + " + ".join(accepted)
-            current = HeldOutScore(label=label + " (no refit)", effects=dict(lin.effects),
-                                   sum_of_squares=lin.weighted_sum_of_squares(lin.r0),
-                                   eq6_pct={t.trial_id: e for t, e in zip(chosen, lin.eq6, strict=True)},
-                                   yaw_fit_pct={t.trial_id: f for t, f in zip(chosen, lin.yaw_fit, strict=True)},
-                                   eq6_without_miss_pct={t.trial_id: e for t, e in
-                                                         zip(chosen, _without_miss(lin), strict=True)})
+            current = _unrefitted(lin, label + " (no refit)")
             round_names, baseline, refit_note = model_names, current, "nothing to refit"
             if model_names:
                 base_fit = fit(lin, model_names)
@@ -848,8 +843,18 @@ def decide(results: List[CandidateResult]) -> tuple:
     return best.name, [], None
 
 
-def _without_miss(lin: Linearization) -> List[float]:
-    return [lin.eq6_without_miss(k, r) for k, r in enumerate(lin.r0)]
+def _score(lin: Linearization, label: str, effects, corrected, eq6, yaw_fit) -> HeldOutScore:
+    """Per-trial scores of one replay per trial of `lin`: its bias-corrected residuals, Eq. 6, yaw-rate fit."""
+    ids = [t.trial_id for t in lin.trials]
+    return HeldOutScore(label=label, effects=effects, sum_of_squares=lin.weighted_sum_of_squares(corrected),
+                        eq6_pct=dict(zip(ids, eq6, strict=True)), yaw_fit_pct=dict(zip(ids, yaw_fit, strict=True)),
+                        eq6_without_miss_pct={i: lin.eq6_without_miss(k, r) for k, (i, r) in
+                                              enumerate(zip(ids, corrected, strict=True))})
+
+
+def _unrefitted(lin: Linearization, label: str) -> HeldOutScore:
+    """The model of `lin` scored as it stands (its replays there, nothing refitted or held out)."""
+    return _score(lin, label, dict(lin.effects), lin.r0, lin.eq6, lin.yaw_fit)
 
 
 def _cases(trials, eq6, fit_pct, without_miss) -> Dict[str, dict]:
@@ -863,7 +868,7 @@ def _cases(trials, eq6, fit_pct, without_miss) -> Dict[str, dict]:
 
 def _step(label, score: HeldOutScore, trials) -> dict:
     return {"model": label, "effects": score.effects, "mean_eq6_error_pct": score.mean_eq6(),
-            "mean_eq6_without_replay_miss_pct": float(np.mean(list(score.eq6_without_miss_pct.values()))),
+            "mean_eq6_without_replay_miss_pct": score.mean_eq6_without_miss(),
             "held_out_sum_of_squares": score.sum_of_squares, "cases": score.by_case(trials)}
 
 
