@@ -823,6 +823,8 @@ def decide(results: List[CandidateResult]) -> tuple:
     if not helping:
         return None, [], None
     best, others = helping[0], helping[1:]
+    for c in others:
+        c.status = "held-out gain, clearly less than the best one's"
     best_after = best.simulated["held_out_sum_of_squares_after"]
     rivals = [c for c in others if c.simulated["held_out_sum_of_squares_after"] < AMBIGUOUS_RATIO * best_after]
     if rivals:
@@ -831,8 +833,6 @@ def decide(results: List[CandidateResult]) -> tuple:
         for c in [best, *rivals]:
             c.status = "explains it, as well as " + ", ".join(n for n in ambiguous if n != c.name)
         return None, ambiguous, None
-    for c in others:
-        c.status = "held-out gain, clearly less than the best one's"
     if best.simulated["held_out_reduction"] < ACCEPT_HELD_OUT_REDUCTION:
         # Significant and confirmed, but too weak a gain to name the effect: wrong effects accepted in a true
         # one's place gained 17-49% (ACCEPT_HELD_OUT_REDUCTION).
