@@ -105,8 +105,17 @@ def main():
             row = json.loads(line)
             done[(row["effect"], row["strength"], row["seed"], row.get("design", DESIGN))] = row
     effects = args.effects.split(",")
-    jobs = [(e, float(k), s, args.design or DESIGNS.get(e, DESIGN)) for e in effects
-            for k in args.strengths.split(",") for s in range(args.seeds)]
+    unknown = [e for e in effects if e not in REFERENCE]
+    if unknown:
+        raise SystemExit(f"--effects: unknown effect {unknown[0]!r} (known: {', '.join(REFERENCE)})")
+    try:
+        strengths = [float(k) for k in args.strengths.split(",")]
+    except ValueError:
+        raise SystemExit(f"--strengths: cannot read {args.strengths!r} (expected numbers such as 0.5,1,2)") from None
+    jobs = [(e, k, s, args.design or DESIGNS.get(e, DESIGN)) for e in effects for k in strengths
+            for s in range(args.seeds)]
+    for design in dict.fromkeys(j[3] for j in jobs):
+        parse_design(design)  # a bad design stops here, with its one-line error, before any campaign runs
     jobs = [(None, 0.0, s, d) for d in dict.fromkeys(j[3] for j in jobs) for s in range(args.seeds)] + jobs
     for n, job in enumerate(jobs):
         if job in done:

@@ -63,6 +63,7 @@ ACCEPT_HELD_OUT_REDUCTION = 0.5
 # leaving 1.04-1.08x less than another wrong one.
 AMBIGUOUS_RATIO = 1.5
 INDISTINGUISHABLE_COS = 0.95
+Z95 = 1.96  # a parameter's 95% interval is its value +- Z95 standard errors (normal, Wald)
 P_MISFIT = 1e-3  # the final positions' misfit is "consistent with the noise" above this p-value
 MAX_ROUNDS = 3
 REFINED_CANDIDATES = 3  # the best candidates by the linear ranking, refined by a secant step before the checks
@@ -340,6 +341,10 @@ def _pooled_per_case(trials, values) -> Dict[str, float]:
     return {case: float(np.mean(v)) for case, v in pooled.items()}
 
 
+def interval95(value: float, standard_error: float) -> List[float]:
+    return [value - Z95 * standard_error, value + Z95 * standard_error]
+
+
 def wald_p(fitted: Fit, names: List[str]) -> float:
     """p-value of the Wald test that the coordinates `names` are 0 (chi-squared, one dof per coordinate)."""
     from scipy.stats import chi2
@@ -477,7 +482,7 @@ class Round:
         lines = [f"{'candidate':<32}{'fitted (95% interval)':<44}{'held-out rms':>14}{'gain':>6}{'Wald p':>9}"
                  f"{'dAIC':>7}  status"]
         for c in self.candidates:
-            fitted = ", ".join(f"{k}={v:.3g}+-{1.96 * se:.2g}" for k, (v, se) in c.coordinates.items())
+            fitted = ", ".join(f"{k}={v:.3g}+-{Z95 * se:.2g}" for k, (v, se) in c.coordinates.items())
             lines.append(f"{c.name:<32}{fitted:<44}{c.held_out_before:>6.2f}->{c.held_out_after:<6.2f}"
                          f"{100 * c.held_out_reduction:>5.0f}%{c.wald_p:>9.2g}{c.aic_delta:>7.0f}  {c.status}")
         return "\n".join(lines)
@@ -784,7 +789,7 @@ def diagnose(campaign, *, friction: Optional[Friction] = None, effects=None, can
                 if n in c.coordinates:
                     value = lin.coordinate(n).value
                     c.coordinates[n] = [value, float(se)]
-                    c.interval95[n] = [value - 1.96 * float(se), value + 1.96 * float(se)]
+                    c.interval95[n] = interval95(value, float(se))
         # The model written is the last one checked by simulation (no unchecked chord step); its parameters'
         # standard errors come from the linearization there.
         friction_out, effects_out = lin.friction, lin.effects
@@ -948,7 +953,7 @@ def _rank(lin: Linearization, base: Fit, model_names: List[str], names: List[str
         results.append(CandidateResult(
             name=name, parameters=effect.from_coordinates(values),
             coordinates={n: [values[n], se[n]] for n in own},
-            interval95={n: [values[n] - 1.96 * se[n], values[n] + 1.96 * se[n]] for n in own},
+            interval95={n: interval95(values[n], se[n]) for n in own},
             wald_p=p, held_out_before=before, held_out_after=after, held_out_reduction=reduction,
             aic_delta=fitted.aic - reference.aic, score=reduction, status=status, detectable_strength=detectable,
             visibility=_visibility(lin, name)))

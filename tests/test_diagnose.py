@@ -11,6 +11,9 @@ answer. (All effects over many seeds and strengths: benchmarks/diagnosis.py.)"""
 
 import dataclasses
 import math
+import subprocess
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -20,6 +23,8 @@ from rc1_drake.config import FRICTION_NAMES, Friction, Gait, Stop
 from rc1_drake.effects import LIBRARY, Effect, EffectParameter, register
 from rc1_drake.measurements import Trial, load_campaign
 from rc1_drake.synthesize import Case, Noise, noise_free_twin, synthesize_campaign
+
+REPO = Path(__file__).resolve().parents[1]
 
 # ------------------------------------------------------------------------------------------ linear machinery
 
@@ -321,3 +326,14 @@ def test_an_effect_outside_the_library_gets_no_confident_wrong_answer(tmp_path):
     result = _diagnose(campaign)
     assert result.verdict == "unexplained" or not result.accepted, (result.verdict, result.rounds[0].table())
     assert result.verdict != "effect_found"
+
+
+@pytest.mark.parametrize("option, value, named", [("--design", "none,J7y", "'J7y'"),
+                                                  ("--effects", "wheel_toe,gravity", "'gravity'"),
+                                                  ("--strengths", "1,two", "'1,two'")])
+def test_the_benchmark_names_a_bad_option_in_one_line_before_any_campaign(tmp_path, option, value, named):
+    proc = subprocess.run([sys.executable, str(REPO / "benchmarks" / "diagnosis.py"), option, value,
+                           "--out", str(tmp_path / "rows.jsonl")], capture_output=True, text=True, timeout=120)
+    assert proc.returncode != 0 and not (tmp_path / "rows.jsonl").exists()
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(option) and named in lines[0], proc.stderr
