@@ -33,14 +33,16 @@ DESIGN = "none,J7x2"
 
 
 def parse_design(text: str) -> list:
-    """'none,none@70,J7x2,J13': a case per item — the failed joint (J<n>) or none, an optional gait
-    frequency in deg/s (@f) and a trial count (x<k>)."""
+    """'none,none@70,noneb4,J7x2,J13': a case per item — the failed joint (J<n>) or none, an optional gait
+    frequency in deg/s (@f), an optional bias on every joint in deg (b<B>, Eq. 7: a turning gait) and a
+    trial count (x<k>)."""
     cases = []
     for item in text.split(","):
-        m = re.fullmatch(r"(none|J(\d+))(?:@([\d.]+))?(?:x(\d+))?", item.strip())
+        m = re.fullmatch(r"(none|J(\d+))(?:@([\d.]+))?(?:b(-?[\d.]+))?(?:x(\d+))?", item.strip())
         if m is None:
-            raise SystemExit(f"--design: cannot read {item!r} (expected none or J<joint>, then @<deg/s>, x<trials>)")
-        cases.append(Case([int(m[2])] if m[2] else [], int(m[4] or 1),
+            raise SystemExit(f"--design: cannot read {item!r} (expected none or J<joint>, then @<deg/s>, "
+                             "b<bias deg>, x<trials>)")
+        cases.append(Case([int(m[2])] if m[2] else [], int(m[5] or 1), bias_deg=float(m[4] or 0.0),
                           gait=Gait(frequency_deg_s=float(m[3])) if m[3] else None))
     return cases
 
@@ -94,7 +96,7 @@ def main():
     parser.add_argument("--effects", default=",".join(REFERENCE))
     parser.add_argument("--strengths", default="0.5,1,2")
     parser.add_argument("--hold-friction", action="store_true", help="hold the friction at the truth (as the tests)")
-    parser.add_argument("--design", help="the trials of every campaign, e.g. none,none@70,J7x2,J13 (default: "
+    parser.add_argument("--design", help="the trials of every campaign, e.g. none,none@70,noneb4,J7x2,J13 (default: "
                         f"{DESIGN}, or the effect's own: {DESIGNS})")
     parser.add_argument("--out", type=Path, default=Path("benchmarks/out/diagnosis.jsonl"))
     args = parser.parse_args()

@@ -18,7 +18,7 @@ import numpy as np
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import EventStatus
 
-from .config import Rc1Error, Scenario
+from .config import JOINT_LIMIT_DEG, Rc1Error, Scenario
 from .effects import apply_effects, commanded_gait
 from .diagram import RC1Diagram, build_diagram, build_key
 from .gait import serpenoid, serpenoid_parameters
@@ -41,6 +41,12 @@ def rest_state(head_xy, head_yaw: float, q, q_dot, geometry: ChainGeometry) -> n
 def initial_state(scenario: Scenario, geometry: ChainGeometry) -> np.ndarray:
     """Plant state [x, y, yaw, q; vx, vy, w, q_dot] at t = 0 (see the module docstring)."""
     q, q_dot = serpenoid(0.0, commanded_gait(scenario.gait, scenario.effects))
+    # The robot starts within its joint limits: a biased gait can command more at t = 0 (bias 4 deg: joint 8
+    # at 41.4 deg), which the plant's limit constraint would throw back in its first steps and the sensors
+    # record as an angle RC1 cannot reach. A joint at its limit cannot be moving outward.
+    limit = math.radians(JOINT_LIMIT_DEG)
+    outward = (np.abs(q) >= limit) & (q * q_dot > 0.0)
+    q, q_dot = np.clip(q, -limit, limit), np.where(outward, 0.0, q_dot)
     head_yaw = math.radians(scenario.start.heading_deg) - module_yaws(0.0, q).mean()
     return rest_state([scenario.start.x_m, scenario.start.y_m], head_yaw, q, q_dot, geometry)
 
