@@ -116,9 +116,10 @@ def main():
         raise SystemExit(f"--strengths: cannot read {args.strengths!r} (expected numbers such as 0.5,1,2)") from None
     jobs = [(e, k, s, args.design or DESIGNS.get(e, DESIGN)) for e in effects for k in strengths
             for s in range(args.seeds)]
-    for design in dict.fromkeys(j[3] for j in jobs):
+    designs = list(dict.fromkeys(j[3] for j in jobs))
+    for design in designs:
         parse_design(design)  # a bad design stops here, with its one-line error, before any campaign runs
-    jobs = [(None, 0.0, s, d) for d in dict.fromkeys(j[3] for j in jobs) for s in range(args.seeds)] + jobs
+    jobs = [(None, 0.0, s, d) for d in designs for s in range(args.seeds)] + jobs
     for n, job in enumerate(jobs):
         if job in done:
             continue
