@@ -38,7 +38,7 @@ def parse_design(text: str) -> list:
     trial count (x<k>)."""
     cases = []
     for item in text.split(","):
-        m = re.fullmatch(r"(none|J(\d+))(?:@([\d.]+))?(?:b(-?[\d.]+))?(?:x(\d+))?", item.strip())
+        m = re.fullmatch(r"(none|J(\d+))(?:@(\d+(?:\.\d+)?))?(?:b(-?\d+(?:\.\d+)?))?(?:x(\d+))?", item.strip())
         if m is None:
             raise SystemExit(f"--design: cannot read {item!r} (expected none or J<joint>, then @<deg/s>, "
                              "b<bias deg>, x<trials>)")

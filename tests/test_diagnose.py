@@ -329,6 +329,7 @@ def test_an_effect_outside_the_library_gets_no_confident_wrong_answer(tmp_path):
 
 
 @pytest.mark.parametrize("option, value, named", [("--design", "none,J7y", "'J7y'"),
+                                                  ("--design", "noneb4.4.4", "'noneb4.4.4'"),
                                                   ("--effects", "wheel_toe,gravity", "'gravity'"),
                                                   ("--strengths", "1,two", "'1,two'")])
 def test_the_benchmark_names_a_bad_option_in_one_line_before_any_campaign(tmp_path, option, value, named):
