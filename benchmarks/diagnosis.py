@@ -6,7 +6,8 @@
 
 For every effect the replays can see, campaigns of its design (the trials that make it visible: a
 no-failure trial and two joint-7 failures by default, like tests/test_diagnose.py; two circling joint-2
-failures for the head drag; --design for all) are synthesized with the effect hidden at each strength
+failures for the head drag; two nominal and two turning trials, 4 deg bias each way, for the lateral
+asymmetry; --design for all) are synthesized with the effect hidden at each strength
 (a multiple of its reference strength below) and each seed, and diagnosed with the whole library;
 campaigns with no hidden effect, on every design used, measure false alarms. A row per campaign streams
 to --out (rerunning resumes); the table gives, per effect and strength, how often it was accepted,
@@ -47,7 +48,9 @@ def parse_design(text: str) -> list:
     return cases
 
 
-DESIGNS = {"head_drag": "none,J2x2"}  # on DESIGN, a head drag looks like a longitudinal asymmetry (README)
+# On DESIGN a head drag looks like a longitudinal asymmetry, and a lateral friction asymmetry like a toe or a
+# tilt; circling and turning trials tell them apart (README).
+DESIGNS = {"head_drag": "none,J2x2", "lateral_friction_asymmetry": "nonex2,noneb4,noneb-4"}
 REFERENCE = {  # a clearly visible strength on DESIGN's 3 s trials (diagnose.probe_visibility)
     "wheel_toe": ("wheel_toe_deg", 1.5),
     # A failed joint's dry friction does almost nothing below ~0.4 N m on joint-7 trials and makes it stick
@@ -58,7 +61,7 @@ REFERENCE = {  # a clearly visible strength on DESIGN's 3 s trials (diagnose.pro
     "lateral_friction_asymmetry": ("lateral_friction_asymmetry", 0.5),
     "longitudinal_friction_asymmetry": ("longitudinal_friction_asymmetry", 0.5),
     "module_payload": ("payload_kg", 0.8),
-    "ground_slope": ("ground_slope_deg", 8.0),
+    "ground_slope": ("ground_slope_deg", 4.0),  # the diagnosis searches floors within 5 deg (effects.GroundSlope)
     "stribeck_friction": ("stribeck_ratio", 2.0),
 }
 

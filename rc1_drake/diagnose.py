@@ -95,8 +95,8 @@ def friction_coordinates(friction: Friction, held=()) -> List[Coordinate]:
 def effect_coordinates(name: str, effects: Dict[str, float]) -> List[Coordinate]:
     effect = LIBRARY[name]
     values = effect.coordinates(effect_values(effects, effect))
-    return [Coordinate(p.key, name, float(values[p.key]), p.lower, p.upper, p.probe_step)
-            for p in effect.coordinate_space()]
+    return [Coordinate(p.key, name, float(values[p.key]), min(p.lower, values[p.key]), max(p.upper, values[p.key]),
+                       p.probe_step) for p in effect.coordinate_space()]
 
 
 def model_at(friction: Friction, effects: Dict[str, float], coordinates: List[Coordinate], values) -> tuple:

@@ -97,14 +97,19 @@ class GroundSlope(Effect):
                   EffectParameter("ground_slope_direction_deg", -180.0, 180.0))  # downhill, counter-clockwise from +x
 
     # A diagnosis fits the tilt as a vector (downhill x and y components, degrees): at slope 0 the
-    # direction has no effect at all, and the residuals are smooth in the components.
+    # direction has no effect at all, and the residuals are smooth in the components. It searches only
+    # floors a lab could have unnoticed (a 5 deg floor is a 1:11 ramp, steeper than a wheelchair ramp;
+    # a spirit level sees 0.1 deg): free to 20 deg, a tilt absorbed what a lateral friction asymmetry does
+    # to a turning gait (README). A known ramp goes into the model file; the search then spans it.
+    search_deg = 5.0
+
     def coordinates(self, values):
         slope, heading = values["ground_slope_deg"], math.radians(values["ground_slope_direction_deg"])
         return {"ground_slope_x_deg": slope * math.cos(heading), "ground_slope_y_deg": slope * math.sin(heading)}
 
     def coordinate_space(self):
-        return [EffectParameter("ground_slope_x_deg", -20.0, 20.0, probe=3.0),
-                EffectParameter("ground_slope_y_deg", -20.0, 20.0, probe=3.0)]
+        return [EffectParameter(f"ground_slope_{axis}_deg", -self.search_deg, self.search_deg, probe=3.0)
+                for axis in "xy"]
 
     def from_coordinates(self, coordinates):
         x, y = coordinates["ground_slope_x_deg"], coordinates["ground_slope_y_deg"]

@@ -38,6 +38,15 @@ def test_ground_slope_coordinates_round_trip():
     assert back["ground_slope_deg"] == pytest.approx(5.0) and back["ground_slope_direction_deg"] == pytest.approx(120.0)
 
 
+def test_the_tilt_is_searched_within_a_lab_floor_unless_the_model_has_a_ramp():
+    level = {c.name: (c.lower, c.upper) for c in dg.effect_coordinates("ground_slope", {})}
+    assert level == {"ground_slope_x_deg": (-5.0, 5.0), "ground_slope_y_deg": (-5.0, 5.0)}
+    ramp = {c.name: (c.value, c.lower, c.upper) for c in dg.effect_coordinates(
+        "ground_slope", {"ground_slope_deg": 8.0, "ground_slope_direction_deg": 180.0})}
+    assert ramp["ground_slope_x_deg"] == pytest.approx((-8.0, -8.0, 5.0))  # the known ramp stays inside the search
+    assert ramp["ground_slope_y_deg"][1:] == (-5.0, 5.0)
+
+
 def test_model_at_writes_friction_and_effects_through_their_coordinates():
     coords = dg.friction_coordinates(Friction())[:2] + dg.effect_coordinates("ground_slope", {})
     friction, effects = dg.model_at(Friction(), {"wheel_toe_deg": 1.0}, coords, [0.1, 2.0, 0.0, -3.0])
@@ -219,9 +228,9 @@ SECONDS = 2.0
 DESIGN = [Case([], 1), Case([7], 2)]  # the nominal gait sees the wheels; a failed joint sees the rest
 
 
-def _campaign(folder, effects, seed=11, design=DESIGN):
+def _campaign(folder, effects, seed=11, design=DESIGN, seconds=SECONDS):
     synthesize_campaign(folder, design=design, effects=effects, seed=seed,
-                        stop=Stop(line_x_m=None, revolutions=None, time_limit_s=SECONDS))
+                        stop=Stop(line_x_m=None, revolutions=None, time_limit_s=seconds))
     return load_campaign(folder)
 
 
@@ -234,18 +243,23 @@ def _diagnose(campaign, **kwargs):
 # A joint-2 failure circles and drags its head sideways; on the design above a head drag looks like a
 # longitudinal asymmetry or a failed joint's dry friction (test_look_alikes_...).
 CIRCLING = [Case([], 1), Case([2], 2)]
+# A wheel's lateral friction asymmetry is flat at 0 on the design above (Coulomb sticking: README) and a toe
+# or a tilt explains what it does to straight gaits; turning left and right (a 4 deg bias on every joint,
+# Eq. 7), the body slides outward to opposite sides, so the asymmetry changes the two turns differently.
+TURNING = [Case([], 2), Case([], 1, bias_deg=4.0), Case([], 1, bias_deg=-4.0)]
 
 
 # raw_eq6_falls: False for the head drag, measured: the joint-2 replays' own miss of the final position grows
 # with the drag (their bias, 5 cm at 0.45), so their raw Eq. 6 error rises (6 -> 15%), while with the
 # replay's miss taken off it falls by half (16 -> 7%), as do the held-out standardized residuals.
 @pytest.mark.slow
-@pytest.mark.parametrize("effect, key, value, design, seed, raw_eq6_falls", [
-    ("wheel_toe", "wheel_toe_deg", 1.5, DESIGN, 11, True),
-    ("head_drag", "head_drag_mu", 0.5, CIRCLING, 1, False)])
+@pytest.mark.parametrize("effect, key, value, design, seed, seconds, raw_eq6_falls", [
+    ("wheel_toe", "wheel_toe_deg", 1.5, DESIGN, 11, SECONDS, True),
+    ("head_drag", "head_drag_mu", 0.5, CIRCLING, 1, SECONDS, False),
+    ("lateral_friction_asymmetry", "lateral_friction_asymmetry", 0.5, TURNING, 0, 3.0, True)])
 def test_a_visible_hidden_effect_is_ranked_first_accepted_and_recovered(tmp_path, effect, key, value, design, seed,
-                                                                        raw_eq6_falls):
-    result = _diagnose(_campaign(tmp_path, {key: value}, seed=seed, design=design))
+                                                                        seconds, raw_eq6_falls):
+    result = _diagnose(_campaign(tmp_path, {key: value}, seed=seed, design=design, seconds=seconds))
     first = result.candidates[0]
     assert first.name == effect and first.accepted, result.rounds[0].table()
     assert result.accepted[0] == effect and result.verdict == "effect_found", result.explanation
@@ -279,7 +293,10 @@ def test_look_alikes_get_no_confident_wrong_answer(tmp_path, effect, key, value,
 
 # A servo lag is in the measured angles the replays follow; a Stribeck breakaway of 1.5 times the Coulomb
 # friction moves these trials by less than their noise (only the circling joint-2 failure responds, and
-# chaotically: README). Both hidden in one campaign, to spend one.
+# chaotically: README): its fit is not significant. Its linear detectable strength is not asserted: the
+# breakaway acts below a slip speed, and its column at 0 (probe 0.5) differs between machines with the same
+# pinned packages (3.3 on one, 0.94 on an AMD EPYC), while the fit finds 0.42 +- 0.62 on both. Both hidden
+# in one campaign, to spend one.
 @pytest.mark.slow
 def test_effects_the_replays_cannot_see_are_reported_not_detectable_and_nothing_else_accepted(tmp_path):
     result = _diagnose(_campaign(tmp_path, {"servo_lag_s": 0.05, "stribeck_ratio": 1.5}))
@@ -287,7 +304,7 @@ def test_effects_the_replays_cannot_see_are_reported_not_detectable_and_nothing_
     hidden = {d["name"]: d for d in result.not_detectable}
     assert "servo_lag" in hidden and "gait" in hidden["servo_lag"]["experiment"]
     stribeck = next(c for c in result.candidates if c.name == "stribeck_friction")
-    assert stribeck.detectable_strength["stribeck_ratio"] > 1.5 * 1.5  # well below what these trials see
+    assert not stribeck.accepted and stribeck.wald_p >= dg.P_ACCEPT, (stribeck.status, stribeck.coordinates)
     assert f"stribeck_ratio {stribeck.detectable_strength['stribeck_ratio']:.2g}" in result.explanation
 
 
