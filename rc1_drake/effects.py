@@ -113,7 +113,8 @@ class GroundSlope(Effect):
 
     def from_coordinates(self, coordinates):
         x, y = coordinates["ground_slope_x_deg"], coordinates["ground_slope_y_deg"]
-        return {"ground_slope_deg": min(math.hypot(x, y), 20.0), "ground_slope_direction_deg": math.degrees(math.atan2(y, x))}
+        return {"ground_slope_deg": min(math.hypot(x, y), self.main.upper),
+                "ground_slope_direction_deg": math.degrees(math.atan2(y, x))}
 
     def configure(self, setup, values):
         slope, heading = math.radians(values["ground_slope_deg"]), math.radians(values["ground_slope_direction_deg"])
