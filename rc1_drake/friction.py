@@ -19,7 +19,8 @@ shorter still, and a larger eps changes the answer (a joint-7 failure drifts 25 
 
 for the velocity v+ at the end of the step (J: wheel velocity Jacobians), and outputs the force that
 produces it, tau = J^T f(J v+) = (M v+ - p_free) / dt. It starts from the secant linearisation
-f(u) ~ -D(u_n) u with D = c + mu N / sqrt(u_n^2 + eps^2) and polishes with Newton steps. The plant's
+f(u) ~ -D(u_n) u with D = c + mu N / sqrt(u_n^2 + eps^2) and polishes with Newton steps, each backtracked
+until the residual falls, until they move no velocity by 1e-9 m/s (tests/test_friction.py). The plant's
 own step then reproduces v+ up to what this prediction leaves out: the joint-limit impulses, which
 the plant itself treats implicitly. A failed joint's viscous friction -c_joint q_dot is in the same
 solve, so all five of the paper's friction coefficients are parameters of this one system.
@@ -123,19 +124,39 @@ def _servo_torque(offset, rate, power, v_next):
 
 
 @jit
+def _step_residual(v_next, jac_long, jac_lat, mass_damped, momentum_free, dt, mu_long, mu_lat, c_long, c_lat,
+                   normal_force, eps, shape, jac_head, head_coulomb, joint_coulomb, joint_eps, servo_offset,
+                   servo_rate, servo_power):
+    """The backward-Euler step's residual M v+ - p_free - dt f(v+) (with c_joint in M) and its Jacobian."""
+    f_long, f_lat = _wheel_forces(jac_long @ v_next, jac_lat @ v_next, mu_long, mu_lat, c_long, c_lat,
+                                  normal_force, eps, shape)
+    joint_force, _, joint_tangent = _coulomb(v_next, joint_coulomb, joint_eps, 0.0, 0.0, 1.0)
+    servo, linear = _servo_torque(servo_offset, servo_rate, servo_power, v_next)
+    force = jac_long.T @ f_long + jac_lat.T @ f_lat - joint_force + servo
+    t_long = _coulomb(jac_long @ v_next, mu_long * normal_force, eps, shape[1], 0.0, shape[3])[2] + c_long
+    t_lat = _coulomb(jac_lat @ v_next, mu_lat * normal_force, eps, shape[0], shape[2], shape[3])[2] + c_lat
+    matrix = _add_damping(mass_damped, jac_long, jac_lat, t_long, t_lat, dt) + dt * np.diag(
+        joint_tangent + linear * servo_rate)
+    if head_coulomb > 0.0:
+        f_head, _, k_head = _isotropic(jac_head @ v_next, head_coulomb, eps)
+        force += jac_head.T @ f_head
+        matrix += dt * (jac_head.T @ k_head @ jac_head)
+    return mass_damped @ v_next - momentum_free - dt * force, matrix
+
+
+NEWTON_TOLERANCE_M_S = 1e-9  # a Newton step this small (in every velocity) ends the solve
+MAX_HALVINGS = 12
+
+
+@jit
 def _implicit_friction_force(jac_long, jac_lat, joint_damping, mass_matrix, momentum_free, v, dt, mu_long, mu_lat,
                              c_long, c_lat, normal_force, eps, newton_steps, shape, jac_head, head_coulomb,
                              joint_coulomb, joint_eps, servo_offset, servo_rate, servo_power):
     mass_damped = mass_matrix + dt * np.diag(joint_damping)
     n_long, n_lat = mu_long * normal_force, mu_lat * normal_force
-
-    def rates(u):
-        _, s_long, t_long = _coulomb(jac_long @ u, n_long, eps, shape[1], 0.0, shape[3])
-        _, s_lat, t_lat = _coulomb(jac_lat @ u, n_lat, eps, shape[0], shape[2], shape[3])
-        return s_long + c_long, s_lat + c_lat, t_long + c_long, t_lat + c_lat
-
-    s_long, s_lat, _, _ = rates(v)
-    matrix = _add_damping(mass_damped, jac_long, jac_lat, s_long, s_lat, dt)
+    _, s_long, _ = _coulomb(jac_long @ v, n_long, eps, shape[1], 0.0, shape[3])
+    _, s_lat, _ = _coulomb(jac_lat @ v, n_lat, eps, shape[0], shape[2], shape[3])
+    matrix = _add_damping(mass_damped, jac_long, jac_lat, s_long + c_long, s_lat + c_lat, dt)
     if head_coulomb > 0.0:
         matrix += dt * _isotropic(jac_head @ v, head_coulomb, eps)[1] * (jac_head.T @ jac_head)
     _, joint_secant, _ = _coulomb(v, joint_coulomb, joint_eps, 0.0, 0.0, 1.0)
@@ -143,20 +164,29 @@ def _implicit_friction_force(jac_long, jac_lat, joint_damping, mass_matrix, mome
     servo, linear = _servo_torque(servo_offset, servo_rate, servo_power, v)
     matrix += dt * np.diag(joint_secant + linear * servo_rate)
     v_next = np.linalg.solve(matrix, momentum_free + dt * (linear * servo_offset + (1.0 - linear) * servo))
+    # Newton steps from that secant start, each backtracked until the residual's norm falls (Armijo): a plain
+    # Newton step cycles where the servo clamp or a Coulomb kink switches within the step, and the servos then
+    # chatter (seen at 1 ms on noisy measured angles with two undamped steps).
+    residual, matrix = _step_residual(v_next, jac_long, jac_lat, mass_damped, momentum_free, dt, mu_long, mu_lat,
+                                      c_long, c_lat, normal_force, eps, shape, jac_head, head_coulomb, joint_coulomb,
+                                      joint_eps, servo_offset, servo_rate, servo_power)
     for _ in range(newton_steps):
-        f_long, f_lat = _wheel_forces(jac_long @ v_next, jac_lat @ v_next, mu_long, mu_lat, c_long, c_lat,
-                                      normal_force, eps, shape)
-        joint_force, _, joint_tangent = _coulomb(v_next, joint_coulomb, joint_eps, 0.0, 0.0, 1.0)
-        servo, linear = _servo_torque(servo_offset, servo_rate, servo_power, v_next)
-        force = jac_long.T @ f_long + jac_lat.T @ f_lat - joint_force + servo
-        _, _, t_long, t_lat = rates(v_next)
-        matrix = _add_damping(mass_damped, jac_long, jac_lat, t_long, t_lat, dt) + dt * np.diag(
-            joint_tangent + linear * servo_rate)
-        if head_coulomb > 0.0:
-            f_head, _, k_head = _isotropic(jac_head @ v_next, head_coulomb, eps)
-            force += jac_head.T @ f_head
-            matrix += dt * (jac_head.T @ k_head @ jac_head)
-        v_next = v_next - np.linalg.solve(matrix, mass_damped @ v_next - momentum_free - dt * force)
+        step = np.linalg.solve(matrix, residual)
+        norm = residual @ residual
+        alpha = 1.0
+        for _ in range(MAX_HALVINGS):
+            trial = v_next - alpha * step
+            trial_residual, trial_matrix = _step_residual(
+                trial, jac_long, jac_lat, mass_damped, momentum_free, dt, mu_long, mu_lat, c_long, c_lat,
+                normal_force, eps, shape, jac_head, head_coulomb, joint_coulomb, joint_eps, servo_offset, servo_rate,
+                servo_power)
+            if trial_residual @ trial_residual <= (1.0 - 1e-4 * alpha) * norm:
+                break
+            alpha *= 0.5
+        moved = np.abs(trial - v_next).max()
+        v_next, residual, matrix = trial, trial_residual, trial_matrix
+        if moved < NEWTON_TOLERANCE_M_S:
+            break
     servo = _servo_torque(servo_offset, servo_rate, servo_power, v_next)[0]
     return (mass_matrix @ v_next - momentum_free) / dt - servo, servo  # the plant applies the servo torque itself
 
@@ -263,7 +293,7 @@ class FrictionForces(LeafSystem):
     (`extra_forces`) enter as known forces of the step.
     """
 
-    NEWTON_STEPS = 2
+    NEWTON_STEPS = 20  # at most: the solve stops when a step moves no velocity by NEWTON_TOLERANCE_M_S
 
     def __init__(self, plant, geometry: ChainGeometry, friction: Friction, sgn_smoothing_m_s: float, *,
                  servo_gains=(0.0, 0.0)):

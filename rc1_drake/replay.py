@@ -22,10 +22,9 @@ from .protocol import Run, Session, rest_state
 from .smoothing import smoothing_fit
 
 # Stiff tracking in place of the paper's kinematic joints. Servo and wheel friction are solved implicitly
-# together (friction.FrictionForces); trials replay alike at 0.25 and 0.5 ms (Eq. 6 within 0.25%), but at
-# 1 ms these stiff servos chatter on noisy measured angles: the implicit step's two undamped Newton steps
-# cycle where a servo's clamp switches (a backtracked Newton solve run to convergence removes the chatter;
-# issue 6's session-14 note has the measurements and why it is not in yet). The torque
+# together (friction.FrictionForces); trials replay alike at 0.25 and 0.5 ms (Eq. 6 within 0.25%). 1 ms
+# replays no longer chatter (the solve's Newton steps are damped) and end within 1.5 cm of 0.25 ms ones, but
+# the circling joint-2 replays then lose the head drag that 0.5 ms finds (README): 0.5 ms stays. The torque
 # is capped at 3 N m, 2.5 times the real servo's: a measured motion that needs more is inconsistent
 # with the model, and an uncapped servo then jams the chain (seen on a joint-2 failure).
 REPLAY_SERVO = Servo(kp_Nm_per_rad=300.0, ki_Nm_per_rad_s=0.0, kd_Nm_s_per_rad=1.0, torque_limit_Nm=3.0)

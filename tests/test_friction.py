@@ -99,3 +99,25 @@ def test_implicit_friction_dissipates_and_is_bounded():
         v_next = v + dt * np.linalg.solve(mass, tau)
         assert v_next @ mass @ v_next < v @ mass @ v  # kinetic energy falls
         assert tau @ v_next < 0  # friction does negative work
+
+
+def test_implicit_step_converges_with_stiff_servos_at_their_clamp():
+    """The replay's servos (Kd + dt Kp = 1.3 N m s/rad, 3 N m) on light modules at 1 ms, commands spread across
+    the clamp: a plain Newton step cycles where the clamp switches (two steps, as before: 195 of 200 such
+    problems missed backward Euler, by up to 5 N m; the replays chattered). The damped solve meets it on all."""
+    n, w, dt = 16, 13, 1e-3
+    rate, power = np.r_[np.zeros(3), np.full(13, 1.3)], np.r_[np.zeros(3), np.full(13, 3.0)]
+    for seed in range(40):
+        rng = np.random.default_rng(seed)
+        a = rng.normal(size=(n, n))
+        mass = 1e-3 * (a @ a.T + n * np.eye(n)) + np.diag(np.r_[np.full(3, 4.0), np.zeros(13)])
+        jl, jt = 0.1 * rng.normal(size=(w, n)), 0.1 * rng.normal(size=(w, n))
+        v = rng.normal(scale=0.3, size=n)
+        offset = np.r_[np.zeros(3), rng.normal(scale=3.0, size=13) + 1.3 * v[3:]]
+        p_free = mass @ v + dt * rng.normal(size=n)
+        tau, torque = implicit_friction_force(jl, jt, np.zeros(n), mass, p_free, v, dt, normal_force=np.full(w, N),
+                                              eps=1e-3, newton_steps=20, servo=(offset, rate, power), **PAPER)
+        v_next = np.linalg.solve(mass, p_free + dt * (tau + torque))
+        assert np.allclose(torque, np.clip(offset - rate * v_next, -power, power), rtol=0, atol=1e-8), seed
+        f_long, f_lat = wheel_friction_forces(jl @ v_next, jt @ v_next, normal_force=np.full(w, N), eps=1e-3, **PAPER)
+        assert np.allclose(tau, jl.T @ f_long + jt.T @ f_lat, rtol=0, atol=1e-8), seed
