@@ -16,6 +16,7 @@ DEFAULT_SCENARIOS = REPO_ROOT / "scenarios" / "rc1.yaml"
 NUM_JOINTS = 13
 GRAVITY_M_S2 = 9.81  # m/s^2, the normal force m g of Eqs. 4-5
 JOINT_LIMIT_DEG = 38.0
+Z95 = 1.96  # every reported 95% interval is the value +- Z95 standard errors (normal, Wald)
 FAILURE_MODES = ("free", "locked", "weak")
 
 

@@ -47,7 +47,7 @@ from typing import Callable, Dict, List, Optional
 import numpy as np
 
 from . import identify as idf
-from .config import FRICTION_NAMES, Friction
+from .config import FRICTION_NAMES, Z95, Friction
 from .effects import LIBRARY, active, effect_values
 
 P_ACCEPT = 2.7e-3  # Wald test of a candidate's parameters against 0: |z| > 3 for one parameter
@@ -63,7 +63,6 @@ ACCEPT_HELD_OUT_REDUCTION = 0.5
 # leaving 1.04-1.08x less than another wrong one.
 AMBIGUOUS_RATIO = 1.5
 INDISTINGUISHABLE_COS = 0.95
-Z95 = 1.96  # a parameter's 95% interval is its value +- Z95 standard errors (normal, Wald)
 P_MISFIT = 1e-3  # the final positions' misfit is "consistent with the noise" above this p-value
 MAX_ROUNDS = 3
 REFINED_CANDIDATES = 3  # the best candidates by the linear ranking, refined by a secant step before the checks

@@ -50,7 +50,7 @@ from typing import Dict, List, Optional
 
 import numpy as np
 
-from .config import NUM_JOINTS, Friction, Rc1Error
+from .config import NUM_JOINTS, Z95, Friction, Rc1Error
 from .smoothing import smoothing_spline
 
 # The four wheel coefficients the base rows see, in this column order.
@@ -254,7 +254,7 @@ class EquationErrorResult:
         for n, se, bias, dbias, ok in zip(self.names, self.standard_errors, self.noise_bias, self.differentiation_bias,
                                           self.identifiable, strict=True):
             v = getattr(self.friction, n)
-            ci = f"[{v - 1.96 * se:.4g}, {v + 1.96 * se:.4g}]" if math.isfinite(se) else "-"
+            ci = f"[{v - Z95 * se:.4g}, {v + Z95 * se:.4g}]" if math.isfinite(se) else "-"
             lines.append(f"{n:<12}{v:>10.4g}{_fmt(se):>12}{ci:>24}{_fmt(bias):>12}{_fmt(dbias):>12}  "
                          f"{'yes' if ok else 'NO'}")
         lines.append(f"{self.samples_used} of {self.samples} samples used, trials {', '.join(self.trials_used) or '-'}"

@@ -14,7 +14,7 @@ from typing import Dict, List, Optional
 
 import numpy as np
 
-from .config import FRICTION_NAMES, Friction, Rc1Error
+from .config import FRICTION_NAMES, Z95, Friction, Rc1Error
 from .executor import make_executor
 
 # The paper's manually tuned starting point (section 4).
@@ -384,7 +384,7 @@ class Uncertainty:
         lines = [f"{'coefficient':<12}{'value':>10}{'std. error':>12}{'95% interval':>24}{'sensitivity':>13}  identifiable"]
         for n, v, se, s, ok in zip(self.names, self.values, self.standard_errors, self.sensitivities,
                                    self.identifiable, strict=True):
-            ci = "-" if not math.isfinite(se) else f"[{v - 1.96 * se:.4g}, {v + 1.96 * se:.4g}]"
+            ci = "-" if not math.isfinite(se) else f"[{v - Z95 * se:.4g}, {v + Z95 * se:.4g}]"
             lines.append(f"{n:<12}{v:>10.4g}{(f'{se:.3g}' if math.isfinite(se) else 'inf'):>12}{ci:>24}{s:>13.3g}  "
                          f"{'yes' if ok else 'NO'}")
         return "\n".join(lines)
