@@ -143,9 +143,9 @@ def test_program_fit_recovers_what_the_trials_identify_and_holds_the_rest(tmp_pa
     def free(*names):
         return [dataclasses.replace(p, frozen=p.name not in names) for p in DEFAULT_PARAMETERS]
 
-    # Three iterations (a user's default: ten) keep it to ~2 min: mu_lat 1.525 +- 0.34 (se), where four give
-    # 1.519 and two stop short at 1.38. Eight input-noise draws, the default: four left the start's screen at
-    # its threshold (they passed with two plain Newton steps in the implicit solve, not with the damped ones).
+    # Three iterations (a user's default: ten) keep it to ~2 min: mu_lat 1.525 +- 0.34 (se) (with the implicit
+    # solve's former two plain Newton steps, four gave 1.519 and two stopped short at 1.38). Eight input-noise
+    # draws, the default: four left the start's screen at its threshold (passed with the plain steps, not since).
     result, spread = identify_program(campaign, start=Friction(mu_lat=1.0, mu_long=0.08),
                                       parameters=free("mu_lat", "mu_long"), max_iterations=3, workers=2,
                                       input_noise_samples=8)
