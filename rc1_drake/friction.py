@@ -70,13 +70,20 @@ def _coulomb(u, mu_n, eps, asymmetry, ratio, speed):
 
 
 @jit
+def _wheel_coulomb(v_long, v_lat, mu_long, mu_lat, normal_force, eps, shape):
+    """_coulomb's (force, secant, tangent) along the wheels and across them; shape = [lateral asymmetry,
+    longitudinal asymmetry, Stribeck ratio, Stribeck speed] (the Stribeck terms act laterally only)."""
+    return (_coulomb(v_long, mu_long * normal_force, eps, shape[1], 0.0, shape[3]),
+            _coulomb(v_lat, mu_lat * normal_force, eps, shape[0], shape[2], shape[3]))
+
+
+@jit
 def _wheel_forces(v_long, v_lat, mu_long, mu_lat, c_long, c_lat, normal_force, eps, shape):
     if eps == 0.0:  # the exact sign: the paper's law (shape terms need eps > 0)
         return (-(c_long * v_long + mu_long * normal_force * np.sign(v_long)),
                 -(c_lat * v_lat + mu_lat * normal_force * np.sign(v_lat)))
-    coulomb_long = _coulomb(v_long, mu_long * normal_force, eps, shape[1], 0.0, shape[3])[0]
-    coulomb_lat = _coulomb(v_lat, mu_lat * normal_force, eps, shape[0], shape[2], shape[3])[0]
-    return -(c_long * v_long + coulomb_long), -(c_lat * v_lat + coulomb_lat)
+    along, across = _wheel_coulomb(v_long, v_lat, mu_long, mu_lat, normal_force, eps, shape)
+    return -(c_long * v_long + along[0]), -(c_lat * v_lat + across[0])
 
 
 def wheel_friction_forces(v_long, v_lat, mu_long, mu_lat, c_long, c_lat, normal_force, eps, *, lat_asymmetry=0.0,
@@ -127,15 +134,16 @@ def _servo_torque(offset, rate, power, v_next):
 def _step_residual(v_next, jac_long, jac_lat, mass_damped, momentum_free, dt, mu_long, mu_lat, c_long, c_lat,
                    normal_force, eps, shape, jac_head, head_coulomb, joint_coulomb, joint_eps, servo_offset,
                    servo_rate, servo_power):
-    """The backward-Euler step's residual M v+ - p_free - dt f(v+) (with c_joint in M) and its Jacobian."""
-    f_long, f_lat = _wheel_forces(jac_long @ v_next, jac_lat @ v_next, mu_long, mu_lat, c_long, c_lat,
-                                  normal_force, eps, shape)
+    """The backward-Euler step's residual M v+ - p_free - dt f(v+) (with c_joint in M) and its Jacobian.
+    The wheel forces are _wheel_forces' (eps > 0 here), each Coulomb term evaluated once for force and tangent."""
+    u_long, u_lat = jac_long @ v_next, jac_lat @ v_next
+    (coulomb_long, _, t_long), (coulomb_lat, _, t_lat) = _wheel_coulomb(u_long, u_lat, mu_long, mu_lat,
+                                                                        normal_force, eps, shape)
+    f_long, f_lat = -(c_long * u_long + coulomb_long), -(c_lat * u_lat + coulomb_lat)
     joint_force, _, joint_tangent = _coulomb(v_next, joint_coulomb, joint_eps, 0.0, 0.0, 1.0)
     servo, linear = _servo_torque(servo_offset, servo_rate, servo_power, v_next)
     force = jac_long.T @ f_long + jac_lat.T @ f_lat - joint_force + servo
-    t_long = _coulomb(jac_long @ v_next, mu_long * normal_force, eps, shape[1], 0.0, shape[3])[2] + c_long
-    t_lat = _coulomb(jac_lat @ v_next, mu_lat * normal_force, eps, shape[0], shape[2], shape[3])[2] + c_lat
-    matrix = _add_damping(mass_damped, jac_long, jac_lat, t_long, t_lat, dt) + dt * np.diag(
+    matrix = _add_damping(mass_damped, jac_long, jac_lat, t_long + c_long, t_lat + c_lat, dt) + dt * np.diag(
         joint_tangent + linear * servo_rate)
     if head_coulomb > 0.0:
         f_head, _, k_head = _isotropic(jac_head @ v_next, head_coulomb, eps)
@@ -153,9 +161,8 @@ def _implicit_friction_force(jac_long, jac_lat, joint_damping, mass_matrix, mome
                              c_long, c_lat, normal_force, eps, newton_steps, shape, jac_head, head_coulomb,
                              joint_coulomb, joint_eps, servo_offset, servo_rate, servo_power):
     mass_damped = mass_matrix + dt * np.diag(joint_damping)
-    n_long, n_lat = mu_long * normal_force, mu_lat * normal_force
-    _, s_long, _ = _coulomb(jac_long @ v, n_long, eps, shape[1], 0.0, shape[3])
-    _, s_lat, _ = _coulomb(jac_lat @ v, n_lat, eps, shape[0], shape[2], shape[3])
+    (_, s_long, _), (_, s_lat, _) = _wheel_coulomb(jac_long @ v, jac_lat @ v, mu_long, mu_lat, normal_force, eps,
+                                                   shape)
     matrix = _add_damping(mass_damped, jac_long, jac_lat, s_long + c_long, s_lat + c_lat, dt)
     if head_coulomb > 0.0:
         matrix += dt * _isotropic(jac_head @ v, head_coulomb, eps)[1] * (jac_head.T @ jac_head)
