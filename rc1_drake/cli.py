@@ -572,6 +572,8 @@ def cmd_diagnose(args) -> int:
         print(f"\nround {k + 1}: candidates against {r.baseline.label} (held-out: leave one trial out; "
               f"final-position misfit p = {r.misfit_p:.2g}; today's model's parameters: {r.refit})")
         print(r.table())
+        if r.polished:
+            print(f"{r.accepted} accepted, then estimated further: {r.polished}")
     print("\nVisibility: the final head position's change (cm) per probe step of each candidate, per case:")
     print(result.visibility_table())
     print("\nError waterfall (Eq. 6 error, the same with the replay's own miss on each trial's motion taken off, and"

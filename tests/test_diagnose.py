@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 
 from rc1_drake import diagnose as dg
-from rc1_drake.config import FRICTION_NAMES, Friction, Gait, Stop
+from rc1_drake.config import FRICTION_NAMES, Friction, Gait, Stop, Z95
 from rc1_drake.effects import LIBRARY, Effect, EffectParameter, register
 from rc1_drake.measurements import Trial, load_campaign
 from rc1_drake.synthesize import Case, Noise, noise_free_twin, synthesize_campaign
@@ -249,13 +249,19 @@ CIRCLING = [Case([], 1), Case([2], 2)]
 TURNING = [Case([], 2), Case([], 1, bias_deg=4.0), Case([], 1, bias_deg=-4.0)]
 
 
+# A failed joint's dry friction has a threshold (README): 3 s trials, where 2 s ones tie it with a longitudinal
+# asymmetry. It is accepted at 0.40 (two trust steps) and estimated further once accepted (0.60 +- 0.05 (se)).
+# A longitudinal asymmetry at 0.5 is not significant on these trials (2 s, 4 s: README); at 0.8 on 3 s trials
+# it is found (0.80 +- 0.11 (se); a 1.3 head drag its rival, 83% / 83% linear, clearly behind when simulated).
 # raw_eq6_falls: False for the head drag, measured: the joint-2 replays' own miss of the final position grows
 # with the drag (their bias, 5 cm at 0.45), so their raw Eq. 6 error rises (6 -> 15%), while with the
 # replay's miss taken off it falls by half (16 -> 7%), as do the held-out standardized residuals.
 @pytest.mark.slow
 @pytest.mark.parametrize("effect, key, value, design, seed, seconds, raw_eq6_falls", [
     ("wheel_toe", "wheel_toe_deg", 1.5, DESIGN, 11, SECONDS, True),
-    ("head_drag", "head_drag_mu", 0.5, CIRCLING, 1, SECONDS, False)])
+    ("head_drag", "head_drag_mu", 0.5, CIRCLING, 1, SECONDS, False),
+    ("joint_coulomb_friction", "joint_coulomb_Nm", 0.6, DESIGN, 0, 3.0, True),
+    ("longitudinal_friction_asymmetry", "longitudinal_friction_asymmetry", 0.8, DESIGN, 0, 3.0, True)])
 def test_a_visible_hidden_effect_is_ranked_first_accepted_and_recovered(tmp_path, effect, key, value, design, seed,
                                                                         seconds, raw_eq6_falls):
     result = _diagnose(_campaign(tmp_path, {key: value}, seed=seed, design=design, seconds=seconds))
@@ -263,11 +269,11 @@ def test_a_visible_hidden_effect_is_ranked_first_accepted_and_recovered(tmp_path
     assert first.name == effect and first.accepted, result.rounds[0].table()
     assert result.accepted[0] == effect and result.verdict == "effect_found", result.explanation
     estimate, se = first.coordinates[key]
-    assert abs(estimate - value) < 1.96 * se, (estimate, se)
+    assert abs(estimate - value) < Z95 * se, (estimate, se)
     # The final model: its 95% interval holds the truth and not 0 (a fixed tolerance, 20% once, asked more than
     # these short trials know: the head drag's 0.39 +- 0.17 (se) failed it).
     final, final_se = result.final_coordinates[key]
-    assert abs(final - value) < 1.96 * final_se < abs(final), (final, final_se)
+    assert abs(final - value) < Z95 * final_se < abs(final), (final, final_se)
     assert final == pytest.approx(result.effects[key])
     assert first.simulated["held_out_sum_of_squares_after"] <= 0.5 * first.simulated["held_out_sum_of_squares_before"]
     # Eq. 6 of a 2 s trial has a floor: the hand's 1 cm (mean |error| 1.25 cm in the plane) over ~0.4 m.
@@ -288,7 +294,7 @@ def test_a_lateral_asymmetry_is_ranked_first_and_nothing_else_accepted(tmp_path)
     first = result.candidates[0]
     assert first.name == effect and first.simulated["held_out_reduction"] >= 0.5, result.rounds[0].table()
     estimate, se = first.coordinates[effect]
-    assert abs(estimate - 0.5) < 1.96 * se < estimate, (estimate, se)
+    assert abs(estimate - 0.5) < Z95 * se < estimate, (estimate, se)
     if result.accepted:
         assert result.accepted == [effect] and result.verdict == "effect_found", result.explanation
     else:
@@ -296,32 +302,35 @@ def test_a_lateral_asymmetry_is_ranked_first_and_nothing_else_accepted(tmp_path)
 
 
 # On these short trials a hidden head drag is explained about as well by a tilt or a longitudinal asymmetry,
-# a payload (seed 1) by a head drag that removes 40% of the held-out error (benchmarks/diagnosis.py;
-# accepted before an accepted effect had to halve it), and a failed joint's 0.6 N m dry friction, fitted
-# at 0.40 (two trust steps), by a longitudinal asymmetry as well (84% / 83%; on three joint-7 trials of 3 s
-# a toe is accepted in its place, README): no effect may be accepted in the true one's place.
+# and a payload (seed 1) by a head drag that removes 40% of the held-out error (benchmarks/diagnosis.py;
+# accepted before an accepted effect had to halve it): no effect may be accepted in the true one's place.
+# (A failed joint's 0.6 N m dry friction ties with a longitudinal asymmetry on them, 67% / 81% linear; on 3 s
+# trials it is found: test_a_visible_hidden_effect_...)
 @pytest.mark.slow
 @pytest.mark.parametrize("effect, key, value, seed", [("head_drag", "head_drag_mu", 0.5, 0),
-                                                      ("module_payload", "payload_kg", 0.8, 1),
-                                                      ("joint_coulomb_friction", "joint_coulomb_Nm", 0.6, 0)])
+                                                      ("module_payload", "payload_kg", 0.8, 1)])
 def test_look_alikes_get_no_confident_wrong_answer(tmp_path, effect, key, value, seed):
     result = _diagnose(_campaign(tmp_path, {key: value}, seed=seed))
     assert all(name == effect for name in result.accepted), (result.verdict, result.rounds[0].table())
     assert result.verdict != "effect_found" or result.accepted == [effect]
 
 
-# A servo lag is in the measured angles the replays follow; a Stribeck breakaway of 1.5 times the Coulomb
+# A servo lag is in the measured angles the replays follow; a lab floor's tilt (4 deg here; the diagnosis
+# searches 5 at most) would not be significant on these trials even at 5 deg (a 3-standard-error tilt is
+# 6.7 deg downhill x, 20 deg y, measured); a Stribeck breakaway of 1.5 times the Coulomb
 # friction moves these trials by less than their noise (only the circling joint-2 failure responds, and
 # chaotically: README): its fit is not significant. Its linear detectable strength is not asserted: the
 # breakaway acts below a slip speed, and its column at 0 (probe 0.5) differs between machines with the same
-# pinned packages (3.3 on one, 0.94 on an AMD EPYC), while the fit finds 0.42 +- 0.62 on both. Both hidden
-# in one campaign, to spend one.
+# pinned packages (3.3 on one, 0.94 on an AMD EPYC), while the fit finds 0.42 +- 0.62 on both. All three
+# hidden in one campaign, to spend one.
 @pytest.mark.slow
 def test_effects_the_replays_cannot_see_are_reported_not_detectable_and_nothing_else_accepted(tmp_path):
-    result = _diagnose(_campaign(tmp_path, {"servo_lag_s": 0.05, "stribeck_ratio": 1.5}))
+    result = _diagnose(_campaign(tmp_path, {"servo_lag_s": 0.05, "stribeck_ratio": 1.5, "ground_slope_deg": 4.0,
+                                            "ground_slope_direction_deg": 30.0}))
     assert result.accepted == [] and result.verdict == "no_missing_effect", result.rounds[0].table()
     hidden = {d["name"]: d for d in result.not_detectable}
     assert "servo_lag" in hidden and "gait" in hidden["servo_lag"]["experiment"]
+    assert "ground_slope" in hidden, result.rounds[0].table()
     stribeck = next(c for c in result.candidates if c.name == "stribeck_friction")
     assert not stribeck.accepted and stribeck.wald_p >= dg.P_ACCEPT, (stribeck.status, stribeck.coordinates)
     assert f"stribeck_ratio {stribeck.detectable_strength['stribeck_ratio']:.2g}" in result.explanation
@@ -367,7 +376,8 @@ def test_an_effect_outside_the_library_gets_no_confident_wrong_answer(tmp_path):
 @pytest.mark.parametrize("option, value, named", [("--design", "none,J7y", "'J7y'"),
                                                   ("--design", "noneb4.4.4", "'noneb4.4.4'"),
                                                   ("--effects", "wheel_toe,gravity", "'gravity'"),
-                                                  ("--strengths", "1,two", "'1,two'")])
+                                                  ("--strengths", "1,two", "'1,two'"),
+                                                  ("--strengths", "1,2", "joint_coulomb_Nm at 1.2,")])
 def test_the_benchmark_names_a_bad_option_in_one_line_before_any_campaign(tmp_path, option, value, named):
     proc = subprocess.run([sys.executable, str(REPO / "benchmarks" / "diagnosis.py"), option, value,
                            "--out", str(tmp_path / "rows.jsonl")], capture_output=True, text=True, timeout=120)

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from rc1_drake.cli import main
-from rc1_drake.config import FRICTION_NAMES, Friction, Rc1Error, Stop
+from rc1_drake.config import FRICTION_NAMES, Friction, Rc1Error, Stop, Z95
 from rc1_drake.identify import (PAPER_MANUAL, Eq6Objective, avs, friction_to_yaml, load_friction_file)
 from rc1_drake.measurements import load_campaign
 from rc1_drake.synthesize import Case, synthesize_campaign
@@ -151,7 +151,7 @@ def test_program_fit_recovers_what_the_trials_identify_and_holds_the_rest(tmp_pa
                                       input_noise_samples=8)
     assert result.held == ["mu_long"] and result.friction.mu_long == 0.08
     assert spread.names == ["mu_lat", "mu_long"] and spread.identifiable == [True, False]
-    assert abs(spread.values[0] - truth.mu_lat) <= 1.96 * spread.standard_errors[0], spread.table()
+    assert abs(spread.values[0] - truth.mu_lat) <= Z95 * spread.standard_errors[0], spread.table()
     assert any(w.startswith("mu_long: not identifiable") for w in spread.warnings())
     one_speed = [t for t in campaign.trials if t.gait.frequency_deg_s == 140.0]
     confounded = uncertainty(CampaignResiduals(one_speed), truth, parameters=free("mu_long", "c_long"),
@@ -220,5 +220,5 @@ def test_input_noise_widens_the_intervals_to_cover_the_scatter(tmp_path):
                        input_noise_samples=8)
     (toe,), (se_out,), (se_in,) = narrow.values, narrow.standard_errors, wide.standard_errors
     assert abs(toe - 1.0) > 3 * se_out  # the output-noise interval misses the truth ...
-    assert abs(toe - 1.0) <= 1.96 * se_in and se_in > 2 * se_out  # ... the one with the input noise covers it
+    assert abs(toe - 1.0) <= Z95 * se_in and se_in > 2 * se_out  # ... the one with the input noise covers it
     assert wide.simulations == narrow.simulations + 9
