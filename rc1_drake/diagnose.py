@@ -892,12 +892,12 @@ def _relinearize(lin: Linearization, friction, effects, evaluator, what="residua
     measured again at the new model (replay_error) before the update, so that the secants follow the
     residuals with the replay's own miss taken off."""
     out = evaluator.map(_evaluate, [(t, friction, effects) for t in lin.trials], what)
+    # A trial whose replay now stops elsewhere keeps its old residual and columns (and bias and noise).
+    stays = [len(o[0]) != len(r) for o, r in zip(out, lin.r0, strict=True)]
     target = lin
     if samples:
         bias, noise = _replay_errors(lin.trials, friction, effects, [o[3] for o in out], [len(o[0]) for o in out],
                                      evaluator, samples)
-        # A trial whose replay now stops elsewhere keeps its old residual below, and so its old bias and noise.
-        stays = [len(o[0]) != len(r) for o, r in zip(out, lin.r0, strict=True)]
         old = lin.bias or [None] * len(stays)
         bias = [old[k] if s else b for k, (s, b) in enumerate(zip(stays, bias, strict=True))]
         noise = [lin.noise[k] if s else n for k, (s, n) in enumerate(zip(stays, noise, strict=True))]
@@ -908,7 +908,7 @@ def _relinearize(lin: Linearization, friction, effects, evaluator, what="residua
     columns = {n: list(cols) for n, cols in lin.columns.items()}
     r0, ends = [], []
     for k, (o, r) in enumerate(zip(out, lin.r0, strict=True)):
-        if len(o[0]) != len(r):  # it now stops elsewhere: its old residual and columns stay
+        if stays[k]:
             r0.append(r)
             ends.append(lin.ends[k])
             continue
@@ -941,7 +941,7 @@ def _polish(lin: Linearization, names: List[str], effect: str, evaluator, sample
         moved = _relinearize(lin, *model_at(lin.friction, lin.effects, [lin.coordinate(n) for n in names],
                                             step.values), evaluator, what=f"polishing {effect} ({k + 1})",
                              samples=samples)
-        if lin.weighted_sum_of_squares(moved.r0) >= lin.weighted_sum_of_squares(lin.r0):
+        if lin.weighted_sum_of_squares(moved.r0) >= lin.weighted_sum_of_squares(lin.r0):  # both with lin's weights
             break
         lin = moved
     else:
