@@ -137,8 +137,18 @@ def replay_error(trial, friction, effects, until: float, samples: int, seed: int
     miss on this motion, from its start state, its smoothing of noisy angles and its stiff servos
     (measured on 3 s no-failure trials: the noise alone shifts the start transient by what a 0.3 deg
     toe would, trial after trial) — and their covariance (the input noise; a joint-2 failure, which
-    circles, replays chaotically: there it is large). None when the draws do not line up."""
-    from .replay import Replayer
+    circles, replays chaotically: there it is large). None when the draws do not line up.
+    (In this process; _replay_errors spreads the twins and the draws over an executor, with the same result.)"""
+    made = bootstrap_twin(trial, friction, effects, until)
+    if made is None:
+        return None
+    return _draws_mean_and_covariance([bootstrap_draw(*made, friction, effects, until, seed, i) for i in range(samples)])
+
+
+def bootstrap_twin(trial, friction, effects, until: float) -> Optional[tuple]:
+    """replay_error's twin, with the trial's camera misses and its final position at `until` (so that the
+    samples kept are the trial's), and the trial's angle noise (rad); None when the twin's samples do not
+    line up with the trial's."""
     from .synthesize import noise_free_twin
 
     twin = noise_free_twin(trial, friction=friction, effects=effects)
@@ -147,20 +157,38 @@ def replay_error(trial, friction, effects, until: float, samples: int, seed: int
     t = twin.t - twin.t[0]
     final = np.array([np.interp(until, t, twin.camera[:, i]) for i in (0, 1)])  # the twin's own head there
     camera = None
-    if trial.camera is not None:  # the trial's camera misses, so that the samples kept are the trial's
+    if trial.camera is not None:
         camera = twin.camera.copy()
         camera[np.isnan(trial.camera[:, 0])] = np.nan
-    scored = dataclasses.replace(twin, camera=camera, final_head_xy=final)
-    replayer, rng = Replayer(twin), np.random.default_rng(seed)
-    sigma = idf._replayer(trial).angle_noise_rad()
-    draws = [idf.trial_residual(scored, replayer.run_with_angles(friction, effects, twin.q + replayer.angle_noise(
-        rng, sigma)), until=until) for _ in range(samples)]
+    return dataclasses.replace(twin, camera=camera, final_head_xy=final), idf._replayer(trial).angle_noise_rad()
+
+
+_TWIN_REPLAYERS: dict = {}  # per worker process: (twin, model) -> Replayer, the last few only
+
+
+def bootstrap_draw(twin, sigma_rad: float, friction, effects, until: float, seed: int, index: int) -> np.ndarray:
+    """Draw `index` of replay_error: the twin replayed at the model from its angles plus the `index`-th noise
+    draw of the stream `seed` (so that draws split over processes are the ones one process would make)."""
+    from .replay import Replayer
+
+    key = (twin.trial_id, repr(friction), repr(sorted((effects or {}).items())), twin.q.tobytes())
+    if key not in _TWIN_REPLAYERS:
+        if len(_TWIN_REPLAYERS) >= 8:
+            _TWIN_REPLAYERS.pop(next(iter(_TWIN_REPLAYERS)))
+        _TWIN_REPLAYERS[key] = Replayer(twin)
+    replayer, rng = _TWIN_REPLAYERS[key], np.random.default_rng(seed)
+    for _ in range(index):
+        replayer.angle_noise(rng, sigma_rad)
+    angles = twin.q + replayer.angle_noise(rng, sigma_rad)
+    return idf.trial_residual(twin, replayer.run_with_angles(friction, effects, angles), until=until)
+
+
+def _draws_mean_and_covariance(draws) -> Optional[tuple]:
     if len({len(d) for d in draws}) != 1:
         return None
     draws = np.array(draws)
     deviation = draws - draws.mean(axis=0)
-    covariance = deviation.T @ deviation / max(len(draws) - 1, 1)
-    return draws.mean(axis=0), covariance
+    return draws.mean(axis=0), deviation.T @ deviation / max(len(draws) - 1, 1)
 
 
 def _replay_and_score(trial, friction, effects) -> tuple:
@@ -600,9 +628,14 @@ def linearize(trials, friction, effects, candidates: List[str], evaluator: Evalu
 def _replay_errors(trials, friction, effects, ends, lengths, evaluator: Evaluator, samples: int) -> tuple:
     """Per trial, the replay's bias (None where the bootstrap does not line up with the trial's residuals of
     `lengths`) and its input-noise covariance (replay_error), at (friction, effects)."""
-    jobs = [(t, friction, effects, end, samples, k) for k, (t, end) in enumerate(zip(trials, ends, strict=True))]
-    errors = evaluator.map(replay_error, jobs, "the replays' own error (noise-free twins, resampled)")
-    evaluator.simulations += len(trials) * samples  # map counted one per trial: the twin
+    # Twins first, then every draw a job of its own: a campaign of a few trials keeps every core busy.
+    twins = evaluator.map(bootstrap_twin, [(t, friction, effects, end) for t, end in zip(trials, ends, strict=True)],
+                          "the replays' own error: noise-free twins")
+    jobs = [(*made, friction, effects, end, k, i) for k, (made, end) in enumerate(zip(twins, ends, strict=True))
+            if made is not None for i in range(samples)]
+    draws = iter(evaluator.map(bootstrap_draw, jobs, "the replays' own error: the twins replayed with noisy angles"))
+    errors = [None if made is None else _draws_mean_and_covariance([next(draws) for _ in range(samples)])
+              for made in twins]
     bias, noise = [], []
     for error, n in zip(errors, lengths, strict=True):
         if error is None or len(error[0]) != n:
