@@ -12,6 +12,7 @@ from pathlib import Path
 
 from .config import (DEFAULT_SCENARIOS, FAILURE_MODES, FRICTION_NAMES, Failure, Friction, ModelFile, Rc1Error,
                      Scenario, Stop, load_model_file, load_scenario, model_to_yaml, validate)
+from .diagnose import INPUT_NOISE_SAMPLES as DIAGNOSE_NOISE_SAMPLES
 from .identify import INPUT_NOISE_SAMPLES
 
 
@@ -173,8 +174,9 @@ def make_parser() -> argparse.ArgumentParser:
     dgn.add_argument("--freeze", action="append", default=[], choices=FRICTION_NAMES, metavar="NAME",
                      help="keep a friction coefficient at the model's value (repeatable; saves its replays)")
     dgn.add_argument("--rounds", type=_positive_int, default=3, metavar="N", help="effects to add at most (default 3)")
-    dgn.add_argument("--input-noise-samples", type=_positive_int, default=4, metavar="K",
-                     help="resampled replays per trial for the input-noise covariance (default 4; pooled per case)")
+    dgn.add_argument("--input-noise-samples", type=_positive_int, default=DIAGNOSE_NOISE_SAMPLES, metavar="K",
+                     help="noisy replays of each trial's noise-free twin, for the replay's own miss and its input "
+                          f"noise (default {DIAGNOSE_NOISE_SAMPLES})")
     dgn.add_argument("--no-probe-study", action="store_true",
                      help="do not simulate short probe trials to name the experiment that would see an effect "
                           "not detectable here")

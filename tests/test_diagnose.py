@@ -287,17 +287,21 @@ def test_a_visible_hidden_effect_is_ranked_first_accepted_and_recovered(tmp_path
 
 
 # On these short trials a hidden head drag is explained about as well by a tilt or a longitudinal asymmetry,
-# and a payload (seed 1) by a head drag that removes 40% of the held-out error (benchmarks/diagnosis.py;
-# accepted before an accepted effect had to halve it): no effect may be accepted in the true one's place.
-# (A failed joint's 0.6 N m dry friction ties with a longitudinal asymmetry on them, 67% / 81% linear; on 3 s
-# trials it is found: test_a_visible_hidden_effect_...)
+# and a payload (seed 1) by a head drag (benchmarks/diagnosis.py; accepted, at 40% of the held-out error,
+# before an accepted effect had to halve it): no effect may be accepted in the true one's place. The payload
+# is ranked first (0.97 +- 0.22 (se)) and named among those the trials cannot tell apart (simulated held-out
+# gains 54%, head drag 41%; measured). Its trials do not separate the two: with a joint-2 trial added, or at
+# 1.2 kg, it is `ambiguous` between other effects (README). (A failed joint's 0.6 N m dry friction ties with a
+# longitudinal asymmetry on them, 67% / 81% linear; on 3 s trials it is found: test_a_visible_hidden_effect_...)
 @pytest.mark.slow
-@pytest.mark.parametrize("effect, key, value, seed", [("head_drag", "head_drag_mu", 0.5, 0),
-                                                      ("module_payload", "payload_kg", 0.8, 1)])
-def test_look_alikes_get_no_confident_wrong_answer(tmp_path, effect, key, value, seed):
+@pytest.mark.parametrize("effect, key, value, seed, named", [("head_drag", "head_drag_mu", 0.5, 0, False),
+                                                             ("module_payload", "payload_kg", 0.8, 1, True)])
+def test_look_alikes_get_no_confident_wrong_answer(tmp_path, effect, key, value, seed, named):
     result = _diagnose(_campaign(tmp_path, {key: value}, seed=seed))
     assert all(name == effect for name in result.accepted), (result.verdict, result.rounds[0].table())
     assert result.verdict != "effect_found" or result.accepted == [effect]
+    if named:
+        assert result.verdict == "ambiguous" and effect in result.rounds[-1].ambiguous, result.explanation
 
 
 # A servo lag is in the measured angles the replays follow; a lab floor's tilt (4 deg here; the diagnosis
