@@ -163,7 +163,7 @@ def bootstrap_twin(trial, friction, effects, until: float) -> Optional[tuple]:
     return dataclasses.replace(twin, camera=camera, final_head_xy=final), idf._replayer(trial).angle_noise_rad()
 
 
-_TWIN_REPLAYERS: dict = {}  # per worker process: (twin, model) -> Replayer, the last few only
+_TWIN_REPLAYERS: dict = {}  # per worker process: a twin (its id and angles) -> its Replayer, the last few only
 
 
 def bootstrap_draw(twin, sigma_rad: float, friction, effects, until: float, seed: int, index: int) -> np.ndarray:
@@ -171,7 +171,7 @@ def bootstrap_draw(twin, sigma_rad: float, friction, effects, until: float, seed
     draw of the stream `seed` (so that draws split over processes are the ones one process would make)."""
     from .replay import Replayer
 
-    key = (twin.trial_id, repr(friction), repr(sorted((effects or {}).items())), twin.q.tobytes())
+    key = (twin.trial_id, twin.q.tobytes())
     if key not in _TWIN_REPLAYERS:
         if len(_TWIN_REPLAYERS) >= 8:
             _TWIN_REPLAYERS.pop(next(iter(_TWIN_REPLAYERS)))
