@@ -1,11 +1,13 @@
 """Finding the missing physics. The linear machinery (bounded fit, held-out predictions, Wald test, misfit
 test, look-alike detection) against hand-built data; the replay's own error (a noise-free trial is its own
 twin, and its replay's miss is all bias); then the user's demand, data with a hidden effect: a visible
-effect (a wheel toe on no-failure and joint-7 trials, a head drag on circling joint-2 trials) is found,
-ranked first and accepted with its parameter inside its interval and the held-out error at least halved; an
-effect that other candidates explain about as well on these trials (a head drag, a payload, a failed
-joint's dry friction) gets no other effect accepted in its place; effects the replays cannot see (a servo
-lag, a Stribeck breakaway) are reported as not detectable here and nothing else is accepted; a campaign
+effect (a wheel toe on no-failure and joint-7 trials, a head drag on circling joint-2 trials, a failed
+joint's dry friction and a longitudinal friction asymmetry on 3 s joint-7 trials, a lateral one on turning
+trials) is found, ranked first and accepted with its parameter inside its interval and the held-out error
+at least halved; an effect that other candidates explain about as well on these trials (a head drag, a
+payload: named among them) gets no other effect accepted in its place; effects the replays cannot see (a
+servo lag, a Stribeck breakaway, a lab floor's tilt) are reported as not detectable here and nothing else
+is accepted; a campaign
 without a hidden effect gets nothing accepted; an effect outside the library gets no confident wrong
 answer. (All effects over many seeds and strengths: benchmarks/diagnosis.py.)"""
 
