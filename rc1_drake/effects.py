@@ -290,31 +290,19 @@ def model_setup(effects: Dict[str, float]) -> ModelSetup:
     return setup
 
 
-def apply_effects(built, context, effects: Dict[str, float]) -> ModelSetup:
-    """Write the effects into `context` (after SetDefaultContext): gravity, payload, friction-law terms,
-    normal forces (each module's weight on the floor, m g cos(slope)), wheel toe, explicit forces.
-    Every run calls it, so nothing of a previous run's effects stays."""
-    from . import friction as fr
+def apply_effects(built, context, effects: Dict[str, float], *, friction, sgn_smoothing_m_s: float) -> ModelSetup:
+    """Write the friction and the effects into `context` (after SetDefaultContext): gravity, payload, the
+    friction parameters (friction.friction_parameters: coefficients, friction-law terms, normal forces,
+    wheel toe), explicit forces. Every run calls it, so nothing of a previous run's effects stays."""
+    from .friction import friction_parameters
     from .model import set_payload
 
     setup = model_setup(effects)
     plant, system = built.plant, built.friction
     plant.mutable_gravity_field().set_gravity_vector(setup.gravity)  # the plant's, shared by its contexts
     set_payload(plant, plant.GetMyMutableContextFromRoot(context), setup.payload_module, setup.payload_kg)
-    params = system.parameters(system.GetMyMutableContextFromRoot(context))
-    params[fr.SHAPE] = [setup.lateral_asymmetry, setup.longitudinal_asymmetry, setup.stribeck_ratio,
-                        setup.stribeck_speed_m_s]
-    params[fr.HEAD_MU] = setup.head_mu
-    params[fr.JOINT_COULOMB] = setup.joint_coulomb_Nm
-    params[fr.PAYLOAD_KG], params[fr.PAYLOAD_MODULE] = setup.payload_kg, setup.payload_module
-    geometry = built.rc1.geometry
-    weight = geometry.module_mass.copy()
-    if setup.payload_module:
-        weight[setup.payload_module - 1] += setup.payload_kg
-    weight *= -setup.gravity[2]
-    params[fr.HEAD_NORMAL] = weight[0]
-    params[fr.normal_slice(system.num_wheels)] = weight[geometry.wheel_module]
-    params[fr.toe_slice(system.num_wheels)] = setup.wheel_toe_rad
+    system.parameters(system.GetMyMutableContextFromRoot(context))[:] = friction_parameters(
+        friction=friction, sgn_smoothing_m_s=sgn_smoothing_m_s, setup=setup, geometry=built.rc1.geometry)
     system.extra_forces = list(setup.extra_forces)
     system.gravity_in_plane = bool(setup.gravity[0] or setup.gravity[1])
     return setup

@@ -240,6 +240,30 @@ FAILED = slice(SCALARS, SCALARS + NUM_JOINTS)
 PER_WHEEL = SCALARS + NUM_JOINTS
 
 
+def friction_parameters(*, friction: Friction, sgn_smoothing_m_s: float, setup, geometry: ChainGeometry) -> np.ndarray:
+    """The parameter vector (layout above) of a run: the five coefficients, eps, the terms of the effects
+    gathered in `setup` (effects.ModelSetup), every joint working, each wheel's normal force (its module's
+    weight on the floor, m g cos(slope), payload included) and toe. Both engines take it from here."""
+    if not sgn_smoothing_m_s > 0:
+        raise ValueError("the implicit friction needs sgn_smoothing_m_s > 0")
+    nw = len(geometry.wheel_module)
+    params = np.zeros(PER_WHEEL + 2 * nw)
+    params[: EPS + 1] = FrictionForces.pack(friction, sgn_smoothing_m_s)
+    params[SHAPE] = [setup.lateral_asymmetry, setup.longitudinal_asymmetry, setup.stribeck_ratio,
+                     setup.stribeck_speed_m_s]
+    params[HEAD_MU] = setup.head_mu
+    params[JOINT_COULOMB] = setup.joint_coulomb_Nm
+    params[PAYLOAD_KG], params[PAYLOAD_MODULE] = setup.payload_kg, setup.payload_module
+    weight = np.array(geometry.module_mass, dtype=float)
+    if setup.payload_module:
+        weight[setup.payload_module - 1] += setup.payload_kg
+    weight *= -setup.gravity[2]
+    params[HEAD_NORMAL] = weight[0]
+    params[normal_slice(nw)] = weight[geometry.wheel_module]
+    params[toe_slice(nw)] = setup.wheel_toe_rad
+    return params
+
+
 def normal_slice(num_wheels: int) -> slice:
     return slice(PER_WHEEL, PER_WHEEL + num_wheels)
 
@@ -353,11 +377,6 @@ class FrictionForces(LeafSystem):
     def parameters(self, context) -> np.ndarray:
         """The mutable parameter vector (layout above: C_JOINT .. EPS, effect terms, FAILED, normals, toes)."""
         return context.get_mutable_numeric_parameter(self._param_index).get_mutable_value()
-
-    def set_friction(self, context, friction: Friction, sgn_smoothing_m_s: float) -> None:
-        if not sgn_smoothing_m_s > 0:
-            raise ValueError("the implicit friction needs sgn_smoothing_m_s > 0")
-        self.parameters(context)[: EPS + 1] = self.pack(friction, sgn_smoothing_m_s)
 
     def _calc_step(self, context, value):
         state_port, command_port, power_port = self._inputs

@@ -15,10 +15,39 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import hashlib
+import os
+from pathlib import Path
 
 import numba
 import numpy as np
 
+
+def _drop_stale_kernel_caches() -> None:
+    """numba keys a cached kernel on its own file only, so a kernel whose callee (in another file) changed
+    would load stale code: the package's caches are dropped whenever any of its sources changes."""
+    package = Path(__file__).resolve().parent
+    sources = sorted(package.rglob("*.py"))
+    stamp = hashlib.sha256(b"".join(p.read_bytes() for p in sources)).hexdigest()
+    for cache in {p.parent / "__pycache__" for p in sources}:
+        marker = cache / "rc1_kernels.stamp"
+        try:
+            if marker.read_text() == stamp:
+                continue
+        except OSError:
+            pass
+        try:
+            cache.mkdir(exist_ok=True)
+            for old in (*cache.glob("*.nbi"), *cache.glob("*.nbc")):
+                old.unlink(missing_ok=True)
+            temporary = cache / f"rc1_kernels.stamp.{os.getpid()}"
+            temporary.write_text(stamp)
+            temporary.replace(marker)
+        except OSError:  # a read-only install: numba then compiles in memory
+            pass
+
+
+_drop_stale_kernel_caches()
 jit = functools.partial(numba.njit, cache=True)
 
 

@@ -56,12 +56,8 @@ def configure_context(built: RC1Diagram, context, scenario: Scenario, initial=No
     from `initial` if given, else from initial_state(scenario)."""
     built.diagram.SetDefaultContext(context)
     context.SetTime(0.0)
-    built.friction.set_friction(
-        built.friction.GetMyMutableContextFromRoot(context),
-        scenario.friction,
-        scenario.numerics.sgn_smoothing_m_s,
-    )
-    apply_effects(built, context, scenario.effects)
+    apply_effects(built, context, scenario.effects, friction=scenario.friction,
+                  sgn_smoothing_m_s=scenario.numerics.sgn_smoothing_m_s)
     built.failure_switch.reset(context, scenario.servo.torque_limit_Nm)
     if built.gait_bias is not None:
         bias = serpenoid_parameters(scenario.gait)[3]

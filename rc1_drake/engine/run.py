@@ -1,0 +1,112 @@
+"""A whole run of the RC1 Diagram as one compiled call: its sources, controllers, failure switch, step,
+loggers and stop rules, with the Simulator's timing.
+
+What each Diagram system does at step k (t_k = k dt):
+- the joint command theta(t_k), theta_dot(t_k): the serpenoid (gait.py, Eqs. 3, 7) plus the gait bias
+  plus, with heading control, clamp(kp e_k + ki z_k, +-limit), e_k = mean module yaw - reference; or
+  a cubic Hermite reference (replays), its time clamped to the reference's span as PiecewisePolynomial's;
+- the step (step.py) from x_k, which also gives the servo torque that the torque logger records at t_k,
+  with the servo PID's (servo.py) command u_k = Ki z_k + Kp (theta - q_k) + Kd (theta_dot - q_dot_k);
+- the plant's update first (Drake runs it as an unrestricted update, before the discrete ones), then the
+  controllers' integrators from x_{k+1}: z+ = z + dt (theta - q_{k+1}), theta at t_k (its heading
+  feedback also from x_{k+1});
+- the failure switch between calls (session.py): a failure at t_f acts from the first update at t_k >= t_f;
+- the loggers at t = j P record the state then; the monitor checks the state after each update
+  (not finite: an error; x >= line: "crossed"; |yaw - yaw_0| >= 2 pi revolutions: "circling").
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..kinematics import jit
+from .step import _plant_step
+
+RUNNING, CROSSED, CIRCLING, NOT_FINITE = 0, 1, 2, 3
+SERPENOID, REFERENCE = 0, 1
+
+
+@jit
+def _hermite(t, breaks, values, rates, segment):
+    """Value and derivative of the C1 cubic through (breaks, values, rates) at t (clamped to the span);
+    segment[0] caches the last segment found (runs advance in time)."""
+    n = breaks.shape[0]
+    t = min(max(t, breaks[0]), breaks[n - 1])
+    i = min(segment[0], n - 2)
+    while i > 0 and t < breaks[i]:
+        i -= 1
+    while i < n - 2 and t >= breaks[i + 1]:
+        i += 1
+    segment[0] = i
+    h = breaks[i + 1] - breaks[i]
+    s = (t - breaks[i]) / h
+    s2, s3 = s * s, s * s * s
+    value = ((2 * s3 - 3 * s2 + 1) * values[i] + (s3 - 2 * s2 + s) * h * rates[i]
+             + (-2 * s3 + 3 * s2) * values[i + 1] + (s3 - s2) * h * rates[i + 1])
+    rate = ((6 * s2 - 6 * s) * (values[i] - values[i + 1]) / h + (3 * s2 - 4 * s + 1) * rates[i]
+            + (3 * s2 - 2 * s) * rates[i + 1])
+    return value, rate
+
+
+@jit
+def _command(t, x, source, gait, heading, z_heading, breaks, values, rates, segment):
+    """theta, theta_dot (13,) at t and the heading controller's error (0 without one)."""
+    error = 0.0
+    if source == REFERENCE:
+        theta, theta_dot = _hermite(t, breaks, values, rates, segment)
+        return theta, theta_dot, error
+    amp, omega, phase, bias = gait[0], gait[1], gait[2], gait[3]
+    arg = omega * t - phase
+    theta = amp * np.sin(arg) + bias
+    theta_dot = amp * omega * np.cos(arg)
+    if heading[0] != 0.0:  # active: [1, kp, ki, limit, reference, weights (16)]
+        nq = heading.shape[0] - 5
+        error = heading[5:] @ x[:nq] - heading[4]
+        feedback = min(max(heading[2] * z_heading[0] + heading[1] * error, -heading[3]), heading[3])
+        theta = theta + feedback
+    return theta, theta_dot, error
+
+
+@jit
+def _advance(x, z_pid, z_heading, segment, k0, k1, t_first, dt, extra_force, params, power, locked,
+             log_steps, log_next, last_torque, log_state, log_torque, source, gait, heading, breaks, values,
+             rates, gains, stop, model, mass, yaw_inertia, com, effort, lower, upper, joint_in_parent,
+             joint_in_child, wheel_module, wheel_offset, wheel_toe):
+    """Take the updates k0 <= k < k1 in place on the carried state (x, z_pid, z_heading, segment, log_next,
+    last_torque); returns (status, k) with k the index of the state x now holds. Failures change params,
+    power and locked between calls (session.py), as the failure switch does between AdvanceTo calls.
+
+    gains: [kp, ki, kd];
+    stop: [line x (nan: none), yaw turn (inf: none), yaw_0]; model: [gravity x, y, in plane (0/1)];
+    t_first (nan: k0 dt) is the time of the first update (the Simulator's time at a stop between steps).
+    """
+    nq = x.shape[0] // 2
+    gravity_xy = model[0] + 1j * model[1]
+    in_plane = model[2] != 0.0
+    servo_gains = np.array([gains[0], gains[2]])
+    for k in range(k0, k1):
+        t = k * dt if k > k0 or np.isnan(t_first) else t_first
+        theta, theta_dot, error = _command(t, x, source, gait, heading, z_heading, breaks, values, rates, segment)
+        e_pos = theta - x[3:nq]
+        command = gains[1] * z_pid + gains[0] * e_pos + gains[2] * (theta_dot - x[nq + 3:])
+        x_next, torque = _plant_step(x, dt, params, command, power, servo_gains, extra_force, mass, yaw_inertia,
+                                     com, gravity_xy, in_plane, effort, lower, upper, locked, joint_in_parent,
+                                     joint_in_child, wheel_module, wheel_offset, wheel_toe)
+        while log_next[0] < log_steps.shape[0] and log_steps[log_next[0]] == k:
+            log_state[log_next[0]] = x
+            log_torque[log_next[0]] = torque
+            log_next[0] += 1
+        last_torque[:] = torque
+        # The plant updates its state before the controllers update theirs (an unrestricted update comes
+        # first in Drake's Simulator), so the integrators see x_{k+1} and the command's time t_k.
+        theta, _, error = _command(t, x_next, source, gait, heading, z_heading, breaks, values, rates, segment)
+        z_pid += dt * (theta - x_next[3:nq])
+        z_heading[0] += dt * error
+        x[:] = x_next
+        if not np.isfinite(x[0]):
+            return NOT_FINITE, k + 1
+        if x[0] >= stop[0]:
+            return CROSSED, k + 1
+        if abs(x[2] - stop[2]) >= stop[1]:
+            return CIRCLING, k + 1
+    return RUNNING, k1

@@ -1,0 +1,117 @@
+"""One time step of the RC1 Diagram as a compiled kernel: the same arithmetic, in the same order, as the
+Drake step it mirrors (tests/test_engine.py holds the two together).
+
+    1. FrictionForces (friction.py): the implicit wheel, joint and servo solve at the step's start state,
+       giving the friction force and the servos' backward-Euler torque;
+    2. the discrete plant (SAP): free motion v* = v + dt M^-1 (-C v + g + friction + extra
+       + clamp(servo, +-effort limit)) (Eq. 1; the plant clamps actuation at the SDF's effort limit),
+       locked joints held (their velocity 0, the others' the A-norm projection of v*), then the joint limits as SAP's unilateral
+       constraints (below), then q+ = q + dt v+.
+
+The joint limits (paper section 3: the restoring torque at +-38 deg) follow Drake's SapDriver and
+SapLimitConstraint: a limit is a constraint only if it lies within q0 +- 2 dt max(|v0|, |v*|); its
+impulse is gamma = max(0, (v_hat - vc) / R) with vc = +-v_j (lower, upper), v_hat = -g0 / (2 dt),
+g0 = the distance to the limit, and R = max(beta^2 / (4 pi^2) w, 1 / (dt k 2 dt)), beta = 0.1, k = 1e12,
+w = 1 / A_jj (the Delassus estimate). The step's velocity solves the convex problem
+A (v - v*) = sum_i J_i^T gamma_i(J_i v), here exactly, by active-set Newton.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..friction import FrictionForces, _friction_step
+from ..kinematics import jit
+from .dynamics import _chain_terms
+
+NEWTON_STEPS = FrictionForces.NEWTON_STEPS
+LIMIT_BETA = 0.1
+LIMIT_STIFFNESS = 1e12
+LIMIT_WINDOW = 2.0
+
+
+@jit
+def _limit_solve(q, v, v_star, A, dt, lower, upper, locked):
+    """v+ of the SAP step with joint-limit constraints, locked joints held at rate 0 (module docstring)."""
+    nv = v.shape[0]
+    nj = lower.shape[0]
+    free = np.ones(nv, dtype=np.bool_)
+    free[3:] = ~locked
+    out = v_star.copy()
+    if locked.any():  # min |v - v*|_A with v_locked = 0: A_uu v_u = (A v*)_u
+        index = np.flatnonzero(free)
+        out[:] = 0.0
+        out[index] = np.linalg.solve(np.ascontiguousarray(A[index][:, index]), (A @ v_star)[index])
+    # The limit constraints within the window: dof, sign (+1 lower, -1 upper), v_hat, 1/R.
+    dofs = np.empty(nj, dtype=np.int64)
+    signs = np.empty(nj)
+    v_hat = np.empty(nj)
+    r_inv = np.empty(nj)
+    count = 0
+    for j in range(nj):
+        d = 3 + j
+        if locked[j]:
+            continue
+        dq = LIMIT_WINDOW * dt * max(abs(v[d]), abs(v_star[d]))
+        q0 = q[d]
+        for sign, limit in ((1.0, lower[j]), (-1.0, upper[j])):
+            if (sign > 0.0 and limit >= q0 - dq) or (sign < 0.0 and limit <= q0 + dq):
+                w = 1.0 / A[d, d]
+                R = max(LIMIT_BETA ** 2 / (4.0 * np.pi ** 2) * w, 1.0 / (dt * LIMIT_STIFFNESS * 2.0 * dt))
+                dofs[count] = d
+                signs[count] = sign
+                v_hat[count] = -sign * (q0 - limit) / (2.0 * dt)
+                r_inv[count] = 1.0 / R
+                count += 1
+    if count == 0:
+        return out
+    index = np.flatnonzero(free)
+    Ar = np.ascontiguousarray(A[index][:, index])
+    position = np.full(nv, -1, dtype=np.int64)
+    position[index] = np.arange(index.shape[0])
+    rhs0 = (A @ v_star)[index]
+    vr = out[index].copy()
+    active = np.zeros(count, dtype=np.bool_)
+    for _ in range(4 * count + 4):  # active-set Newton on a convex piecewise quadratic: a few passes
+        changed = False
+        for i in range(count):
+            now = v_hat[i] - signs[i] * vr[position[dofs[i]]] > 0.0
+            if now != active[i]:
+                active[i] = now
+                changed = True
+        if not changed and _ > 0:
+            break
+        matrix = Ar.copy()
+        rhs = rhs0.copy()
+        for i in range(count):
+            if active[i]:
+                r = position[dofs[i]]
+                matrix[r, r] += r_inv[i]
+                rhs[r] += signs[i] * v_hat[i] * r_inv[i]
+        vr = np.linalg.solve(matrix, rhs)
+    out[index] = vr
+    return out
+
+
+@jit
+def _plant_step(x, dt, params, servo_command, servo_power, servo_gains, extra_force, mass, yaw_inertia, com,
+                gravity_xy, gravity_in_plane, effort, lower, upper, locked, joint_in_parent, joint_in_child,
+                wheel_module, wheel_offset, wheel_toe):
+    """(x+, servo torque (13,)) of one Diagram step from state x (module docstring)."""
+    nv = x.shape[0] // 2
+    M, bias, gravity = _chain_terms(x, mass, yaw_inertia, com, joint_in_parent, joint_in_child, gravity_xy)
+    other = -bias
+    if gravity_in_plane:
+        other = other + gravity
+    friction, servo = _friction_step(x, other + extra_force, M, dt, params, NEWTON_STEPS, servo_command, servo_power,
+                                     servo_gains, joint_in_parent, joint_in_child, wheel_module, wheel_offset,
+                                     wheel_toe)
+    tau = -bias + gravity + friction + extra_force  # the plant applies its gravity field itself
+    tau[3:] += np.minimum(np.maximum(servo[3:], -effort), effort)
+    v = x[nv:]
+    v_star = v + dt * np.linalg.solve(M, tau)
+    v_next = _limit_solve(x[:nv], v, v_star, M, dt, lower, upper, locked)
+    out = np.empty_like(x)
+    out[:nv] = x[:nv] + dt * v_next
+    out[nv:] = v_next
+    return out, servo[3:].copy()
