@@ -13,6 +13,7 @@ from pathlib import Path
 from .config import (DEFAULT_SCENARIOS, FAILURE_MODES, FRICTION_NAMES, Failure, Friction, ModelFile, Rc1Error,
                      Scenario, Stop, load_model_file, load_scenario, model_to_yaml, validate)
 from .diagnose import INPUT_NOISE_SAMPLES as DIAGNOSE_NOISE_SAMPLES
+from .engine import ENGINES, make_session, use_engine
 from .identify import INPUT_NOISE_SAMPLES
 
 
@@ -182,6 +183,14 @@ def make_parser() -> argparse.ArgumentParser:
                           "not detectable here")
     _add_outputs(dgn, out_help="write the diagnosed model (friction and accepted effects; default "
                                "out/<campaign>.model.yaml)")
+    # Every simulating command picks its engine.
+    for name, command in sub.choices.items():
+        if name == "effects":
+            continue
+        default = "drake" if name == "run" else "compiled"
+        command.add_argument("--engine", choices=ENGINES, default=default,
+                             help=f"drake (the Diagram, the model of record) or compiled (its numba twin; "
+                                  f"tests/test_engine.py) (default: {default})")
     return parser
 
 
@@ -277,10 +286,9 @@ def _write_atomically(path: Path, write) -> None:
 
 def cmd_run(args) -> int:
     from .metrics import summarize
-    from .protocol import simulate
 
     scenario = scenario_from_args(args)
-    run = simulate(scenario=scenario)
+    run = make_session(scenario, engine=args.engine).simulate(scenario)
     summary = summarize(run)
     record = {"scenario": args.scenario, "failed_joints": scenario.failed_joints, **summary.to_json()}
     width = max(map(len, record))
@@ -617,6 +625,8 @@ def _jsonable(value):
 
 def main(argv=None) -> int:
     args = make_parser().parse_args(argv)
+    if getattr(args, "engine", None):
+        use_engine(args.engine)  # batch work and its worker processes follow it
     try:
         return {"run": cmd_run, "synthesize": cmd_synthesize, "compare": cmd_compare, "sweep": cmd_sweep,
                 "identify": cmd_identify, "compensate": cmd_compensate, "effects": cmd_effects,

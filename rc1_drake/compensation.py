@@ -14,7 +14,7 @@ import dataclasses
 from scipy.optimize import minimize_scalar
 
 from .config import Gait, HeadingControl, Scenario, Start
-from .protocol import Session
+from .engine import make_session
 
 FEEDBACK = HeadingControl(kp=0.2, ki_per_s=0.1)
 
@@ -49,9 +49,9 @@ class BiasSearch:
 
 
 def auto_bias(scenario: Scenario, *, bounds_deg=(-3.0, 3.0), tolerance_deg=0.05, max_runs=16,
-              session: Session | None = None) -> BiasSearch:
+              session=None) -> BiasSearch:
     """The uniform bias in `bounds_deg` that minimizes |lateral drift| at the end of the run."""
-    session = session or Session(scenario)
+    session = session or make_session(scenario)
     history = []
 
     def drift(bias_deg):
@@ -73,14 +73,14 @@ def compensation_study(scenario: Scenario) -> dict:
         return {"outcome": s.outcome, "lateral_drift_m": s.lateral_drift_m,
                 "progress_x_m": float(run.head_xy[-1, 0] - run.head_xy[0, 0]), "t_final_s": s.t_final_s, **extra}
 
-    session = Session(scenario)
+    session = make_session(scenario)
     out = {"none": describe(session.simulate(scenario))}
     search = auto_bias(scenario, session=session)
     out["bias"] = describe(session.simulate(with_bias(scenario, search.bias_deg)), bias_deg=search.bias_deg,
                            search_runs=search.runs)
-    out["feedback"] = describe(Session(with_heading_control(scenario)).simulate(with_heading_control(scenario)))
+    out["feedback"] = describe(make_session(with_heading_control(scenario)).simulate(with_heading_control(scenario)))
     reverse = reversed_drive(scenario)
-    reverse_session = Session(reverse)
+    reverse_session = make_session(reverse)
     out["reverse"] = describe(reverse_session.simulate(reverse))
     rsearch = auto_bias(reverse, session=reverse_session)
     out["reverse+bias"] = describe(reverse_session.simulate(with_bias(reverse, rsearch.bias_deg)),

@@ -50,6 +50,7 @@ import numpy as np
 from . import identify as idf
 from .config import FRICTION_NAMES, Z95, Friction
 from .effects import LIBRARY, active, effect_values
+from .engine import default_engine
 
 P_ACCEPT = 2.7e-3  # Wald test of a candidate's parameters against 0: |z| > 3 for one parameter
 MIN_HELD_OUT_REDUCTION = 0.10  # a candidate "helps" when the simulated held-out error falls by this fraction
@@ -171,7 +172,7 @@ def bootstrap_draw(twin, sigma_rad: float, friction, effects, until: float, seed
     draw of the stream `seed` (so that draws split over processes are the ones one process would make)."""
     from .replay import Replayer
 
-    key = (twin.trial_id, twin.q.tobytes())
+    key = (default_engine(), twin.trial_id, twin.q.tobytes())
     if key not in _TWIN_REPLAYERS:
         if len(_TWIN_REPLAYERS) >= 8:
             _TWIN_REPLAYERS.pop(next(iter(_TWIN_REPLAYERS)))

@@ -15,6 +15,7 @@ from typing import Dict, List, Optional
 import numpy as np
 
 from .config import FRICTION_NAMES, Z95, Friction, Rc1Error
+from .engine import default_engine
 from .executor import make_executor
 
 # The paper's manually tuned starting point (section 4).
@@ -74,7 +75,7 @@ def _replayer(trial):
     """This process's Replayer of `trial` (built once: its Diagram, Simulator and reference)."""
     from .replay import Replayer
 
-    key = str(trial.source or trial.trial_id)
+    key = (default_engine(), str(trial.source or trial.trial_id))
     if key not in _REPLAYERS:
         _REPLAYERS[key] = Replayer(trial)
     return _REPLAYERS[key]

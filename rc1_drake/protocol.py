@@ -106,12 +106,26 @@ class Run:
 
 
 class Session:
-    """One built Diagram with its Simulator, reused for every run whose build_key matches."""
+    """One built Diagram with its Simulator, reused for every run whose build_key matches (the Drake
+    engine; engine.CompiledSession is its compiled twin)."""
+
+    engine = "drake"
 
     def __init__(self, scenario: Scenario, *, joint_reference=None):
-        self.built = build_diagram(scenario, joint_reference=joint_reference)
+        """joint_reference: a Drake trajectory of the 13 joint angles, or a replay.JointReference."""
+        trajectory = getattr(joint_reference, "trajectory", joint_reference)
+        self.built = build_diagram(scenario, joint_reference=trajectory)
         self.simulator = Simulator(self.built.diagram)
-        self.joint_reference = joint_reference
+        self.joint_reference = trajectory
+
+    @property
+    def geometry(self) -> ChainGeometry:
+        return self.built.rc1.geometry
+
+    def set_joint_reference(self, joint_reference) -> None:
+        """Follow another reference (same kind as the one this Session was built with) from the next run."""
+        trajectory = getattr(joint_reference, "trajectory", joint_reference)
+        self.built.diagram.GetSubsystemByName("joint_reference").UpdateTrajectory(trajectory)
 
     def simulate(self, scenario: Scenario, *, initial=None) -> Run:
         """Run `scenario` (from `initial`, a plant state, if given) on this Session's Diagram."""

@@ -18,7 +18,8 @@ from pydrake.trajectories import PiecewisePolynomial
 from .config import Failure, Friction, Numerics, Scenario, Servo, Start, Stop
 from .gait import serpenoid
 from .measurements import Trial
-from .protocol import Run, Session, rest_state
+from .engine import make_session
+from .protocol import Run, rest_state
 from .smoothing import smoothing_fit
 
 # Stiff tracking in place of the paper's kinematic joints. Servo and wheel friction are solved implicitly
@@ -86,13 +87,14 @@ def replay_initial_state(trial: Trial, reference: JointReference, geometry) -> n
 class Replayer:
     """Replays one trial; keeps its Diagram and Simulator so that refits can re-run it cheaply."""
 
-    def __init__(self, trial: Trial, numerics: Numerics | None = None):
+    def __init__(self, trial: Trial, numerics: Numerics | None = None, *, engine: str | None = None):
+        """engine: "drake" or "compiled" (default: engine.default_engine())."""
         self.trial = trial
         self.numerics = numerics or REPLAY_NUMERICS
         self.reference = joint_reference(trial)
         base = replay_scenario(trial, Friction(), numerics=self.numerics)
-        self.session = Session(base, joint_reference=self.reference.trajectory)
-        self.initial = replay_initial_state(trial, self.reference, self.session.built.rc1.geometry)
+        self.session = make_session(base, engine=engine, joint_reference=self.reference)
+        self.initial = replay_initial_state(trial, self.reference, self.session.geometry)
 
     def run(self, friction: Friction, effects=None) -> Run:
         scenario = replay_scenario(self.trial, friction, effects, self.numerics)
@@ -117,17 +119,16 @@ class Replayer:
     def run_with_angles(self, friction: Friction, effects, measured_q: np.ndarray) -> Run:
         """A replay from `measured_q` in place of the trial's angles (same samples), this Diagram reused."""
         reference = joint_reference(self.trial, measured_q)
-        source = self.session.built.diagram.GetSubsystemByName("joint_reference")
-        source.UpdateTrajectory(reference.trajectory)
+        self.session.set_joint_reference(reference)
         try:
-            initial = replay_initial_state(self.trial, reference, self.session.built.rc1.geometry)
+            initial = replay_initial_state(self.trial, reference, self.session.geometry)
             return self.session.simulate(replay_scenario(self.trial, friction, effects, self.numerics), initial=initial)
         finally:
-            source.UpdateTrajectory(self.reference.trajectory)
+            self.session.set_joint_reference(self.reference)
 
 
-def replay(trial: Trial, friction: Friction, effects=None, numerics=None) -> Run:
-    return Replayer(trial, numerics).run(friction, effects)
+def replay(trial: Trial, friction: Friction, effects=None, numerics=None, *, engine: str | None = None) -> Run:
+    return Replayer(trial, numerics, engine=engine).run(friction, effects)
 
 
 def tracking_rms_deg(run: Run, trial: Trial) -> float:

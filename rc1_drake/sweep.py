@@ -77,7 +77,7 @@ _SESSIONS: dict = {}  # per worker process: one Session per Diagram build key
 def run_job(job: SweepJob) -> dict:
     """Simulate one job in this process (reusing its Diagrams); never raises: errors become rows."""
     from .diagram import build_key
-    from .protocol import Session
+    from .engine import default_engine, make_session
 
     row = {"key": job.key, "label": job.label, "trial": job.trial,
            "failed_joints": [f.joint for f in job.scenario.failures],
@@ -85,9 +85,9 @@ def run_job(job: SweepJob) -> dict:
            "bias_deg": job.scenario.gait.bias_deg, "friction": dataclasses.asdict(job.scenario.friction)}
     try:
         scenario = validate(job.scenario, where=f"sweep job {job.label} trial {job.trial}")
-        key = build_key(scenario)
+        key = (default_engine(), build_key(scenario))
         if key not in _SESSIONS:
-            _SESSIONS[key] = Session(scenario)
+            _SESSIONS[key] = make_session(scenario)
         run = _SESSIONS[key].simulate(scenario)
         if not np.isfinite(run.state).all():
             raise Rc1Error("the run diverged (non-finite state)")

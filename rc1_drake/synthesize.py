@@ -17,7 +17,7 @@ import numpy as np
 from .config import Failure, Friction, Gait, Numerics, Rc1Error, Scenario, Start, Stop
 from .diagram import build_key
 from .measurements import Campaign, Stop as TrialStop, Trial, write_trial
-from .protocol import Session
+from .engine import make_session
 
 
 @dataclasses.dataclass
@@ -98,7 +98,7 @@ def synthesize_campaign(folder, *, design=PAPER_DESIGN, friction=None, effects=N
                 stop=stop, numerics=numerics)
             key = build_key(scenario)
             if key not in sessions:
-                sessions[key] = Session(scenario)
+                sessions[key] = make_session(scenario)
             run = sessions[key].simulate(scenario)
             trial = _measure(run, scenario, f"{label}_{k + 1}", noise, rng, camera, sample_period_s)
             write_trial(folder, trial.trial_id, trial)
@@ -134,7 +134,7 @@ def noise_free_twin(trial: Trial, *, friction: Friction, effects=None) -> Trial:
                         start=Start(x_m=x, y_m=y, heading_deg=math.degrees(head_yaw + module_yaws(0.0, q0).mean())),
                         stop=Stop(line_x_m=None, revolutions=None, time_limit_s=end),
                         numerics=Numerics(log_period_s=period))
-    run = Session(scenario).simulate(scenario)
+    run = make_session(scenario).simulate(scenario)
     silent = dataclasses.replace(Noise().scaled(0.0), camera_dropout=0.0)
     twin = _measure(run, scenario, trial.trial_id, silent, np.random.default_rng(0), True, period)
     return dataclasses.replace(twin, notes=f"noise-free twin of {trial.trial_id}")

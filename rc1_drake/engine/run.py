@@ -69,7 +69,7 @@ def _command(t, x, source, gait, heading, z_heading, breaks, values, rates, segm
 
 @jit
 def _advance(x, z_pid, z_heading, segment, k0, k1, t_first, dt, extra_force, params, power, locked,
-             log_steps, log_next, last_torque, log_state, log_torque, source, gait, heading, breaks, values,
+             log_steps, log_times, log_next, last_torque, log_state, log_torque, source, gait, heading, breaks, values,
              rates, gains, stop, model, mass, yaw_inertia, com, effort, lower, upper, joint_in_parent,
              joint_in_child, wheel_module, wheel_offset, wheel_toe):
     """Take the updates k0 <= k < k1 in place on the carried state (x, z_pid, z_heading, segment, log_next,
@@ -93,8 +93,17 @@ def _advance(x, z_pid, z_heading, segment, k0, k1, t_first, dt, extra_force, par
                                      com, gravity_xy, in_plane, effort, lower, upper, locked, joint_in_parent,
                                      joint_in_child, wheel_module, wheel_offset, wheel_toe)
         while log_next[0] < log_steps.shape[0] and log_steps[log_next[0]] == k:
-            log_state[log_next[0]] = x
-            log_torque[log_next[0]] = torque
+            row = log_next[0]
+            log_state[row] = x
+            log_torque[row] = torque
+            if log_times[row] != t:  # a log between two updates: the servo output at its own time
+                theta, theta_dot, _ = _command(log_times[row], x, source, gait, heading, z_heading, breaks, values,
+                                               rates, segment)
+                between = gains[1] * z_pid + gains[0] * (theta - x[3:nq]) + gains[2] * (theta_dot - x[nq + 3:])
+                log_torque[row] = _plant_step(x, dt, params, between, power, servo_gains, extra_force, mass,
+                                              yaw_inertia, com, gravity_xy, in_plane, effort, lower, upper, locked,
+                                              joint_in_parent, joint_in_child, wheel_module, wheel_offset,
+                                              wheel_toe)[1]
             log_next[0] += 1
         last_torque[:] = torque
         # The plant updates its state before the controllers update theirs (an unrestricted update comes

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import sys
 import time
 
 import numpy as np
@@ -20,6 +21,24 @@ from .dynamics import plant_numbers
 from .run import CIRCLING, CROSSED, NOT_FINITE, REFERENCE, SERPENOID, _advance
 
 _REASON = {CROSSED: "crossed", CIRCLING: "circling"}
+_WARNED = set()
+
+
+def _updates_before(t: float, dt: float) -> int:
+    """How many updates (at the floating-point times k * dt, as the Simulator schedules them) come before t:
+    the index of the state at time t."""
+    k = max(int(math.ceil(t / dt)), 0)
+    while k > 0 and (k - 1) * dt >= t:
+        k -= 1
+    while k * dt < t:
+        k += 1
+    return k
+
+
+def _warn_once(message: str) -> None:
+    if message not in _WARNED:
+        _WARNED.add(message)
+        print(f"rc1: note: {message}", file=sys.stderr)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -48,13 +67,42 @@ class CompiledSession:
 
     def __init__(self, scenario: Scenario | None = None, *, joint_reference=None):
         self.numbers = plant_numbers()
+        self._drake = None  # the fallback for effects with a Python force
         self.set_joint_reference(joint_reference)
 
+    @property
+    def geometry(self):
+        return self.numbers.geometry
+
     def set_joint_reference(self, joint_reference) -> None:
-        """Follow `joint_reference` (a HermiteReference, or a cubic Drake PiecewisePolynomial); None: the gait."""
-        if joint_reference is not None and not isinstance(joint_reference, HermiteReference):
-            joint_reference = HermiteReference.from_trajectory(joint_reference)
-        self.joint_reference = joint_reference
+        """Follow `joint_reference` (replay.JointReference, HermiteReference or a cubic Drake
+        PiecewisePolynomial) from the next run; None: the gait."""
+        if joint_reference is None or isinstance(joint_reference, HermiteReference):
+            self.joint_reference = joint_reference
+        elif hasattr(joint_reference, "q_dot"):
+            self.joint_reference = HermiteReference(t=np.asarray(joint_reference.t, dtype=float),
+                                                    q=np.asarray(joint_reference.q, dtype=float),
+                                                    q_dot=np.asarray(joint_reference.q_dot, dtype=float))
+        else:
+            self.joint_reference = HermiteReference.from_trajectory(joint_reference)
+        if self._drake is not None:
+            self._drake.set_joint_reference(self._trajectory())
+
+    def _trajectory(self):
+        from pydrake.trajectories import PiecewisePolynomial
+
+        ref = self.joint_reference
+        return None if ref is None else PiecewisePolynomial.CubicHermite(ref.t, ref.q.T, ref.q_dot.T)
+
+    def _on_drake(self, scenario: Scenario, initial) -> Run:
+        """Runs whose effects carry a Python force (ModelSetup.extra_forces) go to the Drake engine."""
+        from ..protocol import Session
+
+        if self._drake is None:
+            _warn_once("an effect adds a Python force (ModelSetup.extra_forces), which the compiled engine "
+                       "cannot call: such runs use the Drake engine")
+            self._drake = Session(scenario, joint_reference=self._trajectory())
+        return self._drake.simulate(scenario, initial=initial)
 
     def simulate(self, scenario: Scenario, *, initial=None) -> Run:
         """Run `scenario` (from `initial`, a plant state, if given), as protocol.Session.simulate does."""
@@ -62,8 +110,7 @@ class CompiledSession:
         geometry = numbers.geometry
         setup = model_setup(scenario.effects)
         if setup.extra_forces:
-            raise Rc1Error("the compiled engine cannot run an effect with an explicit Python force "
-                           "(ModelSetup.extra_forces): run it with --engine drake")
+            return self._on_drake(scenario, initial)
         dt = scenario.numerics.time_step_s
         params = friction_parameters(friction=scenario.friction, sgn_smoothing_m_s=scenario.numerics.sgn_smoothing_m_s,
                                      setup=setup, geometry=geometry)
@@ -74,7 +121,7 @@ class CompiledSession:
         if x.shape != (32,):
             raise ValueError(f"initial state must have 32 entries, got shape {x.shape}")
         t_end = scenario.stop.time_limit_s
-        steps = int(math.ceil(t_end / dt - 1e-9))  # updates at k dt < t_end
+        steps = _updates_before(t_end, dt)
         later = sorted((f for f in scenario.failures if 0.0 < f.time_s < t_end), key=lambda f: f.time_s)
         for failure in scenario.failures:
             if failure.time_s == 0.0:  # as configure_context: the switch acts on the start state
@@ -83,7 +130,7 @@ class CompiledSession:
         period = scenario.numerics.log_period_s
         if period > 0:
             log_t = np.arange(int(math.floor(t_end / period + 1e-9)) + 1) * period
-            log_steps = np.ceil(log_t / dt - 1e-9).astype(np.int64)
+            log_steps = np.array([_updates_before(t, dt) for t in log_t], dtype=np.int64)
         else:
             log_steps = np.arange(steps + 1, dtype=np.int64)
             log_t = log_steps * dt
@@ -108,7 +155,7 @@ class CompiledSession:
             x, z, zh, seg, params, power, locked, log_next, last = carry
             log_steps, *rest = constant
             return _advance(x, z, zh, seg, k0, k1, t_first, dt, np.zeros(16), params, power, locked, log_steps,
-                            log_next, last, *rest)
+                            log_t, log_next, last, *rest)
 
         def probe(k, t, logs):
             """The step at k without taking it: its servo torque, and the logs due then if `logs`."""
@@ -122,13 +169,13 @@ class CompiledSession:
         start = time.perf_counter()
         status, k = 0, 0
         for failure in later:  # as Session: advance to the failure, switch, go on
-            k_fail = int(math.ceil(failure.time_s / dt - 1e-9))
+            k_fail = _updates_before(failure.time_s, dt)
             status, k = advance(carry, k, k_fail)
             if status:
                 break
             due = carry[7][0]
-            if due < len(log_steps) and log_steps[due] == k and log_t[due] <= failure.time_s + 1e-12:
-                probe(k, failure.time_s, True)  # the loggers publish at t_f, before the switch
+            if due < len(log_steps) and log_steps[due] == k and log_t[due] <= failure.time_s:
+                probe(k, failure.time_s, True)  # a log at t_f itself is published by AdvanceTo(t_f): before the switch
             self._fail(failure, carry[4], carry[5], carry[6], carry[0])
         if not status:
             status, k = advance(carry, k, steps)

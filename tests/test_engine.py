@@ -1,0 +1,161 @@
+"""Two engines, one model: the compiled engine (rc1_drake/engine) against the Drake Diagram it mirrors.
+
+Each case runs on both engines and must agree within the project's equivalence figures: the final head
+position within 0.2% of the distance travelled and the joint angles within 0.2 deg RMS, with the same
+samples and the same outcome. In practice they agree to round-off (1e-9 of the distance); the looser
+figures leave room for the chaotic cases (a free joint 2) to amplify it.
+"""
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+from pydrake.systems.framework import DiagramBuilder
+
+from rc1_drake.config import Failure, Gait, HeadingControl, Scenario, Stop
+from rc1_drake.effects import LIBRARY, model_setup
+from rc1_drake.engine import make_session
+from rc1_drake.engine.dynamics import _chain_terms, plant_numbers
+from rc1_drake.engine.session import CompiledSession
+from rc1_drake.measurements import load_trial
+from rc1_drake.model import add_rc1_plant, set_payload
+from rc1_drake.protocol import Session
+from rc1_drake.replay import Replayer
+
+HORIZON_S = 2.0  # long enough for every effect to show; the Drake runs keep the file to about a minute
+CAMPAIGN = "data/paper_campaign"
+
+
+def assert_equivalent(drake, compiled):
+    assert drake.stop_reason == compiled.stop_reason
+    np.testing.assert_allclose(compiled.t, drake.t, atol=1e-9)
+    distance = np.hypot(*(drake.head_xy[-1] - drake.head_xy[0]))
+    assert np.hypot(*(compiled.head_xy[-1] - drake.head_xy[-1])) <= 0.002 * distance
+    assert math.degrees(np.sqrt(np.mean((compiled.q - drake.q) ** 2))) <= 0.2
+    np.testing.assert_allclose(compiled.servo_torque, drake.servo_torque, atol=1e-3)
+
+
+def both(scenario, **kwargs):
+    return Session(scenario).simulate(scenario, **kwargs), CompiledSession().simulate(scenario, **kwargs)
+
+
+def short(scenario, seconds=HORIZON_S):
+    return dataclasses.replace(scenario, stop=dataclasses.replace(scenario.stop, time_limit_s=seconds))
+
+
+def test_chain_terms_match_the_plant_on_random_states():
+    numbers = plant_numbers()
+    rc1 = add_rc1_plant(DiagramBuilder(), time_step=1e-3)
+    plant, context = rc1.plant, rc1.plant.CreateDefaultContext()
+    jp, jc, *_ = numbers.geometry.arrays
+    rng = np.random.default_rng(3)
+    for payload_module in (0, 1, 9):
+        x = rng.normal(size=32)
+        gravity = np.array([0.8, -0.5, -9.7])
+        plant.mutable_gravity_field().set_gravity_vector(gravity)
+        set_payload(plant, context, payload_module, 0.4)
+        plant.SetPositionsAndVelocities(context, x)
+        M, bias, g = _chain_terms(x, numbers.masses(payload_module, 0.4), numbers.central_yaw_inertia, numbers.com,
+                                  jp, jc, complex(gravity[0], gravity[1]))
+        np.testing.assert_allclose(M, plant.CalcMassMatrix(context), atol=1e-12)
+        np.testing.assert_allclose(bias, plant.CalcBiasTerm(context), atol=1e-11)
+        np.testing.assert_allclose(g, plant.CalcGravityGeneralizedForces(context), atol=1e-12)
+
+
+CASES = {
+    "nominal": Scenario(),
+    "J2": Scenario(failures=[Failure(joint=2)]),  # chaotic: the free joint next to the head
+    "J7": Scenario(failures=[Failure(joint=7)]),
+    "J13": Scenario(failures=[Failure(joint=13)]),
+    "J7+bias": Scenario(gait=Gait(bias_deg=4.0), failures=[Failure(joint=7)]),  # the start clipped at the limit
+    "J5 at 0.7 s": Scenario(failures=[Failure(joint=5, time_s=0.7)]),
+    "J7 locked at 0.5 s": Scenario(failures=[Failure(joint=7, time_s=0.5, mode="locked")]),
+    "J4 locked": Scenario(failures=[Failure(joint=4, mode="locked")]),
+    "J9 weak": Scenario(failures=[Failure(joint=9, mode="weak", weak_torque_Nm=0.3)]),
+    "J7 heading control": Scenario(failures=[Failure(joint=7)], heading_control=HeadingControl(kp=1.0, ki_per_s=0.5)),
+}
+
+
+@pytest.mark.parametrize("name", CASES)
+def test_runs_agree(name):
+    assert_equivalent(*both(short(CASES[name])))
+
+
+@pytest.mark.parametrize("effect", sorted(LIBRARY))
+def test_every_effect_agrees(effect):
+    """Each library effect at a clearly visible strength (twice its probe step), on a J7 run (the joint
+    effects act in failed joints only)."""
+    main = LIBRARY[effect].main
+    value = min(2 * main.probe_step, main.upper)
+    scenario = Scenario(failures=[Failure(joint=7)], effects={main.key: value})
+    if effect == "ground_slope":
+        scenario.effects["ground_slope_direction_deg"] = 60.0
+    assert_equivalent(*both(short(scenario)))
+
+
+def test_crossing_and_circling_stop_both_engines_alike():
+    crossing = dataclasses.replace(Scenario(), stop=Stop(line_x_m=0.05, revolutions=None, time_limit_s=5.0))
+    drake, compiled = both(crossing)
+    assert drake.stop_reason == "crossed"
+    assert_equivalent(drake, compiled)
+    circling = dataclasses.replace(Scenario(gait=Gait(bias_deg=4.0)),
+                                   stop=Stop(line_x_m=None, revolutions=0.25, time_limit_s=3.0))
+    drake, compiled = both(circling)
+    assert drake.stop_reason == "circling"
+    assert_equivalent(drake, compiled)
+
+
+def test_log_periods_that_are_not_a_multiple_of_the_step_agree():
+    scenario = short(Scenario(failures=[Failure(joint=7, time_s=0.3333)]), 0.6)
+    scenario = dataclasses.replace(scenario, numerics=dataclasses.replace(scenario.numerics, log_period_s=0.0125))
+    assert_equivalent(*both(scenario))
+    every_step = dataclasses.replace(scenario, numerics=dataclasses.replace(scenario.numerics, log_period_s=0.0))
+    drake, compiled = both(short(every_step, 0.05))
+    assert len(drake.t) == 51
+    np.testing.assert_allclose(compiled.state, drake.state, atol=1e-9)  # step by step: the same arithmetic
+
+
+def first_seconds(trial, seconds):
+    keep = trial.t - trial.t[0] <= seconds
+    cut = {k: getattr(trial, k)[keep] for k in ("t", "q", "head_yaw_rate")}
+    if trial.camera is not None:
+        cut["camera"] = trial.camera[keep]
+    return dataclasses.replace(trial, **cut)
+
+
+@pytest.mark.parametrize("stem", ["nominal_1", "j2_1", "j7_1", "j13_1", "j7_bias_1"])
+def test_replays_of_shipped_trials_agree(stem):
+    trial = first_seconds(load_trial(f"{CAMPAIGN}/{stem}.json"), HORIZON_S)
+    friction = Scenario().friction
+    drake = Replayer(trial, engine="drake").run(friction, {"wheel_toe_deg": 1.0})
+    compiled = Replayer(trial, engine="compiled")
+    assert_equivalent(drake, compiled.run(friction, {"wheel_toe_deg": 1.0}))
+    # The bootstrap's path: the same replayer on other angles, then back on the trial's.
+    noisy = trial.q + compiled.angle_noise(np.random.default_rng(0), 0.01)
+    assert_equivalent(Replayer(trial, engine="drake").run_with_angles(friction, None, noisy),
+                      compiled.run_with_angles(friction, None, noisy))
+    assert_equivalent(drake, compiled.run(friction, {"wheel_toe_deg": 1.0}))
+
+
+def test_an_effect_with_a_python_force_runs_on_the_drake_engine_and_says_so(capsys):
+    from rc1_drake import effects as fx
+
+    class Push(fx.Effect):
+        name = "test_engine_push"
+        parameters = (fx.EffectParameter("test_engine_push_N", 0.0, 1.0),)
+
+        def configure(self, setup, values):
+            setup.extra_forces.append(lambda x: np.r_[values["test_engine_push_N"], np.zeros(15)])
+
+    fx.register(Push())
+    try:
+        scenario = short(Scenario(effects={"test_engine_push_N": 0.5}), 0.3)
+        pushed = make_session(scenario, engine="compiled").simulate(scenario)
+        assert "Drake engine" in capsys.readouterr().err
+        assert_equivalent(Session(scenario).simulate(scenario), pushed)
+        plain = CompiledSession().simulate(short(Scenario(), 0.3))
+        assert pushed.head_xy[-1, 0] > plain.head_xy[-1, 0] + 1e-3  # the push acted
+    finally:
+        fx.LIBRARY.pop("test_engine_push")
+    assert model_setup({}).extra_forces == []
