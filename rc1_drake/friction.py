@@ -101,16 +101,54 @@ def wheel_friction_forces(v_long, v_lat, mu_long, mu_lat, c_long, c_lat, normal_
 
 
 @jit
+def spd_solve(matrix, rhs):
+    """matrix^-1 rhs for a symmetric positive definite matrix, by Cholesky (LU if it is not definite).
+    The step's matrices are 16 x 16: a hand loop beats LAPACK's call overhead several times."""
+    n = matrix.shape[0]
+    low = np.zeros((n, n))
+    for j in range(n):
+        pivot = matrix[j, j]
+        for k in range(j):
+            pivot -= low[j, k] * low[j, k]
+        if not pivot > 0.0:
+            return np.linalg.solve(matrix, rhs)
+        root = np.sqrt(pivot)
+        low[j, j] = root
+        for i in range(j + 1, n):
+            value = matrix[i, j]
+            for k in range(j):
+                value -= low[i, k] * low[j, k]
+            low[i, j] = value / root
+    out = rhs.copy()
+    for i in range(n):
+        for k in range(i):
+            out[i] -= low[i, k] * out[k]
+        out[i] /= low[i, i]
+    for i in range(n - 1, -1, -1):
+        for k in range(i + 1, n):
+            out[i] -= low[k, i] * out[k]
+        out[i] /= low[i, i]
+    return out
+
+
+@jit
 def _add_damping(matrix, jac_long, jac_lat, d_long, d_lat, dt):
-    """matrix + dt (J_long^T diag(d_long) J_long + J_lat^T diag(d_lat) J_lat)."""
+    """matrix + dt (J_long^T diag(d_long) J_long + J_lat^T diag(d_lat) J_lat); a wheel's Jacobian is zero
+    beyond the joints ahead of it, so its rows are summed over their nonzero span only."""
     out = matrix.copy()
     n = out.shape[0]
     for w in range(jac_long.shape[0]):
-        for a in range(n):
+        span = n
+        while span > 0 and jac_long[w, span - 1] == 0.0 and jac_lat[w, span - 1] == 0.0:
+            span -= 1
+        for a in range(span):
             la = dt * d_long[w] * jac_long[w, a]
             ta = dt * d_lat[w] * jac_lat[w, a]
-            for b in range(n):
+            for b in range(a + 1):
                 out[a, b] += la * jac_long[w, b] + ta * jac_lat[w, b]
+    for a in range(n):
+        for b in range(a):
+            out[b, a] = out[a, b] - matrix[a, b] + matrix[b, a]
     return out
 
 
@@ -170,7 +208,7 @@ def _implicit_friction_force(jac_long, jac_lat, joint_damping, mass_matrix, mome
     # The servos as they stand at v: linear where not saturated, a constant torque where saturated.
     servo, linear = _servo_torque(servo_offset, servo_rate, servo_power, v)
     matrix += dt * np.diag(joint_secant + linear * servo_rate)
-    v_next = np.linalg.solve(matrix, momentum_free + dt * (linear * servo_offset + (1.0 - linear) * servo))
+    v_next = spd_solve(matrix, momentum_free + dt * (linear * servo_offset + (1.0 - linear) * servo))
     # Newton steps from that secant start, each backtracked until the residual's norm falls (Armijo): a plain
     # Newton step cycles where the servo clamp or a Coulomb kink switches within the step, and the servos then
     # chatter (seen at 1 ms on noisy measured angles with two undamped steps).
@@ -178,7 +216,7 @@ def _implicit_friction_force(jac_long, jac_lat, joint_damping, mass_matrix, mome
                                       c_long, c_lat, normal_force, eps, shape, jac_head, head_coulomb, joint_coulomb,
                                       joint_eps, servo_offset, servo_rate, servo_power)
     for _ in range(newton_steps):
-        step = np.linalg.solve(matrix, residual)
+        step = spd_solve(matrix, residual)
         norm = residual @ residual
         alpha = 1.0
         for _ in range(MAX_HALVINGS):

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..friction import FrictionForces, _friction_step
+from ..friction import FrictionForces, _friction_step, spd_solve
 from ..kinematics import jit
 from .dynamics import _chain_terms
 
@@ -41,7 +41,7 @@ def _limit_solve(q, v, v_star, A, dt, lower, upper, locked):
     if locked.any():  # min |v - v*|_A with v_locked = 0: A_uu v_u = (A v*)_u
         index = np.flatnonzero(free)
         out[:] = 0.0
-        out[index] = np.linalg.solve(np.ascontiguousarray(A[index][:, index]), (A @ v_star)[index])
+        out[index] = spd_solve(np.ascontiguousarray(A[index][:, index]), (A @ v_star)[index])
     # The limit constraints within the window: dof, sign (+1 lower, -1 upper), v_hat, 1/R.
     dofs = np.empty(nj, dtype=np.int64)
     signs = np.empty(nj)
@@ -88,7 +88,7 @@ def _limit_solve(q, v, v_star, A, dt, lower, upper, locked):
                 r = position[dofs[i]]
                 matrix[r, r] += r_inv[i]
                 rhs[r] += signs[i] * v_hat[i] * r_inv[i]
-        vr = np.linalg.solve(matrix, rhs)
+        vr = spd_solve(matrix, rhs)
     out[index] = vr
     return out
 
@@ -109,7 +109,7 @@ def _plant_step(x, dt, params, servo_command, servo_power, servo_gains, extra_fo
     tau = -bias + gravity + friction + extra_force  # the plant applies its gravity field itself
     tau[3:] += np.minimum(np.maximum(servo[3:], -effort), effort)
     v = x[nv:]
-    v_star = v + dt * np.linalg.solve(M, tau)
+    v_star = v + dt * spd_solve(M, tau)
     v_next = _limit_solve(x[:nv], v, v_star, M, dt, lower, upper, locked)
     out = np.empty_like(x)
     out[:nv] = x[:nv] + dt * v_next
