@@ -1,20 +1,23 @@
-"""Speed: the project's four targets measured in one table (issue 8).
+"""Speed: the project's targets measured in one table, both engines side by side (issues 8, 27).
 
-    python benchmarks/speed.py [--only single,batch,identification,diagnosis] [--workers 2] [--repeats 3]
-                               [--json benchmarks/out/speed.json]
+    python benchmarks/speed.py [--only single,replay,batch,identification,diagnosis] [--workers 2]
+                               [--repeats 3] [--json benchmarks/out/speed.json] [--readme]
 
-1. single: the nominal run and the joint-7 failure (the default Scenario, Diagram and Simulator reused,
-   best of --repeats): wall time, real-time factor, how far the final head position is from a converged
-   run of the same model (time step / 4) in % of the distance travelled, and the wall time of the
-   project's independent SciPy implementation (reference.py) on the same case in this process.
-2. batch: the paper's sweep (no failure and joints 1-13, five trials each: 70 runs) through the
-   executor with 1 and with --workers processes (process start and Diagram builds included).
-3. identification: on a synthesized identification campaign (3 s trials), AVS from the paper's manual
-   values (10 iterations) against the program fit and the equation-error fit: trial simulations each
-   needed to reach AVS's Eq. 6 error (the scoring replays are not counted), and wall times.
-4. diagnosis: `rc1 diagnose` (every candidate effect) on the shipped 21-trial campaign.
+1. single: the nominal run and the joint-7 failure (the default Scenario) on the Drake Diagram and on
+   the compiled engine (best of --repeats, sessions reused): wall times, their ratio, the compiled
+   engine's real-time factor, how far the two engines' final head positions are apart and how far the
+   compiled run is from a converged one (time step / 4), in % of the distance travelled, and the
+   project's independent SciPy model (reference.py) on the same case against the compiled engine.
+2. replay: the shipped 10 s nominal trial replayed on each engine, and a batch of 8 bootstrap replays
+   (fresh angle noise each) on the compiled engine in one process.
+3. batch: the paper's sweep (no failure and joints 1-13, five trials each: 70 runs) through the
+   executor with 1 and with --workers processes (process start included), on the compiled engine.
+4. identification: on a synthesized identification campaign (3 s trials), AVS from the paper's manual
+   values (10 iterations) against the program fit and the equation-error fit.
+5. diagnosis: `rc1 diagnose` (every candidate effect) on the shipped 21-trial campaign.
 
 Each section prints as it finishes; the table at the end gives every figure with its target.
+`--readme` writes that table into README.md between its speed-table markers.
 """
 
 import argparse
@@ -22,42 +25,82 @@ import dataclasses
 import json
 import os
 import platform
+import re
 import tempfile
 import time
 from pathlib import Path
 
+import numpy as np
+
 from rc1_drake.config import REPO_ROOT, Failure, Scenario, Stop
+from rc1_drake.engine import use_engine
+from rc1_drake.engine.session import CompiledSession
 from rc1_drake.executor import make_executor
 from rc1_drake.protocol import Session
 from rc1_drake.reference import simulate_reference
 from single_run import moved  # benchmarks/ is on the path when this script runs
 
-SECTIONS = ("single", "batch", "identification", "diagnosis")
+SECTIONS = ("single", "replay", "batch", "identification", "diagnosis")
+TRIAL = REPO_ROOT / "data" / "paper_campaign" / "nominal_1.json"
+
+
+def best(session, scenario, repeats):
+    session.simulate(scenario)  # first run: numba's compiled kernels load
+    return min((session.simulate(scenario) for _ in range(repeats)), key=lambda r: r.wall_time_s)
 
 
 def single(args) -> list:
     rows = []
     for name, failures in {"nominal": [], "joint 7": [Failure(joint=7)]}.items():
         scenario = Scenario(failures=failures)
-        session = Session(scenario)
-        session.simulate(scenario)  # first run: numba's compiled kernels load
-        run = min((session.simulate(scenario) for _ in range(args.repeats)), key=lambda r: r.wall_time_s)
+        drake = best(Session(scenario), scenario, args.repeats)
+        run = best(CompiledSession(), scenario, args.repeats)
         n = scenario.numerics
         fine = dataclasses.replace(scenario, numerics=dataclasses.replace(n, time_step_s=n.time_step_s / 4))
-        converged = Session(fine).simulate(fine)
+        converged = CompiledSession().simulate(fine)
         error = float(moved(run.head_xy[-1], converged.head_xy[-1], run.head_xy[0]))
+        apart = float(moved(run.head_xy[-1], drake.head_xy[-1], run.head_xy[0]))
         ref = simulate_reference(scenario, run.geometry, joint_path=(run.t, run.q), rtol=1e-5, atol=1e-7)
-        print(f"single {name}: {run.t[-1]:.2f} s simulated in {run.wall_time_s:.3f} s "
-              f"({run.t[-1] / run.wall_time_s:.0f}x real time), {error:.2f}% from the run at dt/4; "
-              f"SciPy reference {ref.wall_time_s:.1f} s", flush=True)
+        speed = run.t[-1] / run.wall_time_s
+        print(f"single {name}: {run.t[-1]:.2f} s simulated in {run.wall_time_s:.3f} s compiled ({speed:.0f}x real "
+              f"time), {drake.wall_time_s:.2f} s Drake; engines {apart:.1e}% apart; {error:.2f}% from the run at "
+              f"dt/4; SciPy reference {ref.wall_time_s:.1f} s", flush=True)
         rows += [
-            (f"{name} run, wall (s)", run.wall_time_s, "<= 0.25", run.wall_time_s <= 0.25),
-            (f"{name} run, x real time", run.t[-1] / run.wall_time_s, ">= 40", run.t[-1] / run.wall_time_s >= 40),
+            (f"{name} run, Drake wall (s)", drake.wall_time_s, "", None),
+            (f"{name} run, compiled wall (s)", run.wall_time_s, "<= 0.1", run.wall_time_s <= 0.1),
+            (f"{name} run, Drake / compiled", drake.wall_time_s / run.wall_time_s, "", None),
+            (f"{name} run, compiled x real time", speed, ">= 100", speed >= 100),
+            (f"{name} run, SciPy reference / compiled", ref.wall_time_s / run.wall_time_s, ">= 100",
+             ref.wall_time_s / run.wall_time_s >= 100),
+            (f"{name} run, engines apart (% of distance)", apart, "<= 0.2", apart <= 0.2),
             (f"{name} run, from converged (%)", error, "<= 1", error <= 1.0),
-            (f"{name} run, SciPy reference / Drake wall", ref.wall_time_s / run.wall_time_s, "> 1",
-             ref.wall_time_s > run.wall_time_s),
         ]
     return rows
+
+
+def replay(args) -> list:
+    from rc1_drake.measurements import load_trial
+    from rc1_drake.replay import Replayer
+
+    trial = load_trial(TRIAL)
+    friction = Scenario().friction
+    drake = Replayer(trial, engine="drake").run(friction)
+    replayer = Replayer(trial, engine="compiled")
+    run = min((replayer.run(friction) for _ in range(args.repeats + 1)), key=lambda r: r.wall_time_s)
+    rng = np.random.default_rng(0)
+    start = time.perf_counter()
+    for _ in range(8):
+        replayer.run_resampled(friction, None, rng)
+    batch = time.perf_counter() - start
+    apart = float(moved(run.head_xy[-1], drake.head_xy[-1], run.head_xy[0]))
+    print(f"replay: {run.t[-1]:.2f} s trial in {run.wall_time_s:.3f} s compiled, {drake.wall_time_s:.2f} s Drake "
+          f"({apart:.1e}% apart); 8 bootstrap replays in {batch:.2f} s", flush=True)
+    return [
+        ("10 s replay, Drake wall (s)", drake.wall_time_s, "", None),
+        ("10 s replay, compiled wall (s)", run.wall_time_s, "<= 0.15", run.wall_time_s <= 0.15),
+        ("10 s replay, Drake / compiled", drake.wall_time_s / run.wall_time_s, "", None),
+        ("8 bootstrap replays, compiled, one process (s)", batch, "<= 1", batch <= 1.0),
+    ]
 
 
 def batch(args) -> list:
@@ -150,12 +193,29 @@ def diagnosis(args) -> list:
             ("diagnosis: replays", result.simulations, "", None)]
 
 
+BEGIN, END = "<!-- speed-table: written by benchmarks/speed.py --readme -->", "<!-- speed-table end -->"
+
+
+def write_readme_table(rows, machine) -> None:
+    """Replace the README's speed table (between BEGIN and END) by this run's figures."""
+    readme = REPO_ROOT / "README.md"
+    text = readme.read_text()
+    if BEGIN not in text or END not in text:
+        raise SystemExit(f"{readme}: no speed-table markers ({BEGIN} ... {END})")
+    lines = [BEGIN, f"Measured {time.strftime('%Y-%m-%d')} on {machine} by `python benchmarks/speed.py --readme`:", "",
+             "| figure | measured | target | met |", "|---|---|---|---|"]
+    lines += [f"| {n} | {v:.3g} | {t} | {'' if m is None else ('yes' if m else 'no')} |" for n, v, t, m in rows]
+    table = "\n".join(lines + [END])
+    readme.write_text(re.sub(re.escape(BEGIN) + ".*?" + re.escape(END), lambda _: table, text, flags=re.S))
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--only", default=",".join(SECTIONS), help=f"comma-separated, of {', '.join(SECTIONS)}")
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--json", default=None, help="also write the table here")
+    parser.add_argument("--readme", action="store_true", help="write the table into README.md (speed-table markers)")
     args = parser.parse_args()
     chosen = [s.strip() for s in args.only.split(",") if s.strip()]
     unknown = [s for s in chosen if s not in SECTIONS]
@@ -164,12 +224,15 @@ def main():
     machine = (f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
                f"python {platform.python_version()}")
     print(f"machine: {machine}")
+    use_engine("compiled")  # batch sections: the compiled engine, as the batch commands
     rows = []
     for section in chosen:
         rows += globals()[section](args)
     print(f"\n{'figure':52} {'measured':>10} {'target':>10}  met")
     for name, value, target, met in rows:
         print(f"{name:52} {value:>10.3g} {target:>10}  {'' if met is None else ('yes' if met else 'NO')}")
+    if args.readme:
+        write_readme_table(rows, machine)
     if args.json:
         Path(args.json).parent.mkdir(parents=True, exist_ok=True)
         Path(args.json).write_text(json.dumps({"machine": machine, "rows": [
