@@ -53,9 +53,10 @@ PAPER_SHAPE = np.array([0.0, 0.0, 0.0, 0.01])
 
 
 @jit
-def _coulomb(u, mu_n, eps, asymmetry, ratio, speed):
-    """The Coulomb term mu N (1 + a sgn(u)) (1 + r exp(-(u/v_s)^2)) sgn(u) and the secant and tangent rates
-    of the whole friction law f(u) = -(c u + that): f = -secant u, df/du = -tangent (before adding c).
+def _coulomb1(u, mu_n, eps, asymmetry, ratio, speed):
+    """The Coulomb term mu N (1 + a sgn(u)) (1 + r exp(-(u/v_s)^2)) sgn(u) of one slip speed u, and the secant
+    and tangent rates of the whole friction law f(u) = -(c u + that): f = -secant u, df/du = -tangent (before
+    adding c).
 
     a != 0 makes sliding toward +u resist more than toward -u (mu N (1 + a) against mu N (1 - a));
     r > 0 adds breakaway friction that fades above the Stribeck speed v_s. The tangent is clipped at 0
@@ -63,10 +64,19 @@ def _coulomb(u, mu_n, eps, asymmetry, ratio, speed):
     root = np.sqrt(u * u + eps * eps)
     s = u / root
     ds = eps * eps / (root * root * root)
-    decay = np.exp(-(u / speed) ** 2) if ratio != 0.0 else np.zeros_like(u)
+    decay = np.exp(-(u / speed) ** 2) if ratio != 0.0 else 0.0
     magnitude = mu_n * (1.0 + asymmetry * s) * (1.0 + ratio * decay)
     slope = mu_n * (asymmetry * ds * (1.0 + ratio * decay) - (1.0 + asymmetry * s) * ratio * decay * 2.0 * u / speed**2)
-    return magnitude * s, magnitude / root, np.maximum(slope * s + magnitude * ds, 0.0)
+    return magnitude * s, magnitude / root, max(slope * s + magnitude * ds, 0.0)
+
+
+@jit
+def _coulomb(u, mu_n, eps, asymmetry, ratio, speed):
+    """_coulomb1 over arrays u and mu_n: (force, secant, tangent) arrays."""
+    force, secant, tangent = np.empty(u.shape[0]), np.empty(u.shape[0]), np.empty(u.shape[0])
+    for i in range(u.shape[0]):
+        force[i], secant[i], tangent[i] = _coulomb1(u[i], mu_n[i], eps, asymmetry, ratio, speed)
+    return force, secant, tangent
 
 
 @jit
@@ -132,27 +142,6 @@ def spd_solve(matrix, rhs):
 
 
 @jit
-def _add_damping(matrix, jac_long, jac_lat, d_long, d_lat, dt):
-    """matrix + dt (J_long^T diag(d_long) J_long + J_lat^T diag(d_lat) J_lat); a wheel's Jacobian is zero
-    beyond the joints ahead of it, so its rows are summed over their nonzero span only."""
-    out = matrix.copy()
-    n = out.shape[0]
-    for w in range(jac_long.shape[0]):
-        span = n
-        while span > 0 and jac_long[w, span - 1] == 0.0 and jac_lat[w, span - 1] == 0.0:
-            span -= 1
-        for a in range(span):
-            la = dt * d_long[w] * jac_long[w, a]
-            ta = dt * d_lat[w] * jac_lat[w, a]
-            for b in range(a + 1):
-                out[a, b] += la * jac_long[w, b] + ta * jac_lat[w, b]
-    for a in range(n):
-        for b in range(a):
-            out[b, a] = out[a, b] - matrix[a, b] + matrix[b, a]
-    return out
-
-
-@jit
 def _isotropic(u_xy, coulomb, eps):
     """Isotropic Coulomb friction -C u / sqrt(|u|^2 + eps^2) of a point sliding at u_xy (2,): the force,
     its secant rate (scalar) and its tangent matrix (2x2, positive semidefinite)."""
@@ -169,24 +158,69 @@ def _servo_torque(offset, rate, power, v_next):
 
 
 @jit
-def _step_residual(v_next, jac_long, jac_lat, mass_damped, momentum_free, dt, mu_long, mu_lat, c_long, c_lat,
+def _span(jac_long, jac_lat, w):
+    """How many leading coordinates move wheel w (its Jacobian rows are zero beyond them)."""
+    span = jac_long.shape[1]
+    while span > 0 and jac_long[w, span - 1] == 0.0 and jac_lat[w, span - 1] == 0.0:
+        span -= 1
+    return span
+
+
+@jit
+def _assemble(v_next, tangent, jac_long, jac_lat, spans, mass_damped, dt, mu_long, mu_lat, c_long, c_lat,
+              normal_force, eps, shape, jac_head, head_coulomb, joint_coulomb, joint_eps, servo_offset, servo_rate,
+              servo_power):
+    """The step's generalized force f(v+) (wheels, head, joint Coulomb, servos; Eqs. 4-5) and the matrix
+    mass_damped + dt * (rate of -f): its tangent (Newton) if `tangent`, else its secant (the start, which
+    linearizes each Coulomb term through the origin). Also returns which servos are not saturated."""
+    n = v_next.shape[0]
+    force = np.zeros(n)
+    matrix = mass_damped.copy()
+    for w in range(jac_long.shape[0]):
+        span = spans[w]
+        u_long, u_lat = 0.0, 0.0
+        for a in range(span):
+            u_long += jac_long[w, a] * v_next[a]
+            u_lat += jac_lat[w, a] * v_next[a]
+        c_l, s_l, t_l = _coulomb1(u_long, mu_long * normal_force[w], eps, shape[1], 0.0, shape[3])
+        c_t, s_t, t_t = _coulomb1(u_lat, mu_lat * normal_force[w], eps, shape[0], shape[2], shape[3])
+        f_long, f_lat = -(c_long * u_long + c_l), -(c_lat * u_lat + c_t)
+        d_long = dt * (c_long + (t_l if tangent else s_l))
+        d_lat = dt * (c_lat + (t_t if tangent else s_t))
+        for a in range(span):
+            force[a] += jac_long[w, a] * f_long + jac_lat[w, a] * f_lat
+            la, ta = d_long * jac_long[w, a], d_lat * jac_lat[w, a]
+            for b in range(a + 1):
+                matrix[a, b] += la * jac_long[w, b] + ta * jac_lat[w, b]
+    linear = np.zeros(n)
+    for a in range(n):
+        if joint_coulomb[a] > 0.0:
+            f_j, s_j, t_j = _coulomb1(v_next[a], joint_coulomb[a], joint_eps, 0.0, 0.0, 1.0)
+            force[a] -= f_j
+            matrix[a, a] += dt * (t_j if tangent else s_j)
+        raw = servo_offset[a] - servo_rate[a] * v_next[a]
+        force[a] += min(max(raw, -servo_power[a]), servo_power[a])
+        if abs(raw) < servo_power[a]:
+            linear[a] = 1.0
+            matrix[a, a] += dt * servo_rate[a]
+    for a in range(n):
+        for b in range(a):
+            matrix[b, a] = matrix[a, b] - mass_damped[a, b] + mass_damped[b, a]
+    if head_coulomb > 0.0:
+        f_head, secant, k_head = _isotropic(jac_head @ v_next, head_coulomb, eps)
+        force += jac_head.T @ f_head
+        matrix += dt * (jac_head.T @ k_head @ jac_head if tangent else secant * (jac_head.T @ jac_head))
+    return force, matrix, linear
+
+
+@jit
+def _step_residual(v_next, jac_long, jac_lat, spans, mass_damped, momentum_free, dt, mu_long, mu_lat, c_long, c_lat,
                    normal_force, eps, shape, jac_head, head_coulomb, joint_coulomb, joint_eps, servo_offset,
                    servo_rate, servo_power):
-    """The backward-Euler step's residual M v+ - p_free - dt f(v+) (with c_joint in M) and its Jacobian.
-    The wheel forces are _wheel_forces' (eps > 0 here), each Coulomb term evaluated once for force and tangent."""
-    u_long, u_lat = jac_long @ v_next, jac_lat @ v_next
-    (coulomb_long, _, t_long), (coulomb_lat, _, t_lat) = _wheel_coulomb(u_long, u_lat, mu_long, mu_lat,
-                                                                        normal_force, eps, shape)
-    f_long, f_lat = -(c_long * u_long + coulomb_long), -(c_lat * u_lat + coulomb_lat)
-    joint_force, _, joint_tangent = _coulomb(v_next, joint_coulomb, joint_eps, 0.0, 0.0, 1.0)
-    servo, linear = _servo_torque(servo_offset, servo_rate, servo_power, v_next)
-    force = jac_long.T @ f_long + jac_lat.T @ f_lat - joint_force + servo
-    matrix = _add_damping(mass_damped, jac_long, jac_lat, t_long + c_long, t_lat + c_lat, dt) + dt * np.diag(
-        joint_tangent + linear * servo_rate)
-    if head_coulomb > 0.0:
-        f_head, _, k_head = _isotropic(jac_head @ v_next, head_coulomb, eps)
-        force += jac_head.T @ f_head
-        matrix += dt * (jac_head.T @ k_head @ jac_head)
+    """The backward-Euler step's residual M v+ - p_free - dt f(v+) (with c_joint in M) and its Jacobian."""
+    force, matrix, _ = _assemble(v_next, True, jac_long, jac_lat, spans, mass_damped, dt, mu_long, mu_lat, c_long,
+                                 c_lat, normal_force, eps, shape, jac_head, head_coulomb, joint_coulomb, joint_eps,
+                                 servo_offset, servo_rate, servo_power)
     return mass_damped @ v_next - momentum_free - dt * force, matrix
 
 
@@ -199,22 +233,20 @@ def _implicit_friction_force(jac_long, jac_lat, joint_damping, mass_matrix, mome
                              c_long, c_lat, normal_force, eps, newton_steps, shape, jac_head, head_coulomb,
                              joint_coulomb, joint_eps, servo_offset, servo_rate, servo_power):
     mass_damped = mass_matrix + dt * np.diag(joint_damping)
-    (_, s_long, _), (_, s_lat, _) = _wheel_coulomb(jac_long @ v, jac_lat @ v, mu_long, mu_lat, normal_force, eps,
-                                                   shape)
-    matrix = _add_damping(mass_damped, jac_long, jac_lat, s_long + c_long, s_lat + c_lat, dt)
-    if head_coulomb > 0.0:
-        matrix += dt * _isotropic(jac_head @ v, head_coulomb, eps)[1] * (jac_head.T @ jac_head)
-    _, joint_secant, _ = _coulomb(v, joint_coulomb, joint_eps, 0.0, 0.0, 1.0)
-    # The servos as they stand at v: linear where not saturated, a constant torque where saturated.
-    servo, linear = _servo_torque(servo_offset, servo_rate, servo_power, v)
-    matrix += dt * np.diag(joint_secant + linear * servo_rate)
+    spans = np.array([_span(jac_long, jac_lat, w) for w in range(jac_long.shape[0])])
+    args = (jac_long, jac_lat, spans, mass_damped, dt, mu_long, mu_lat, c_long, c_lat, normal_force, eps, shape,
+            jac_head, head_coulomb, joint_coulomb, joint_eps, servo_offset, servo_rate, servo_power)
+    # The secant start: each Coulomb term through the origin at its rate at v; the servos as they stand at
+    # v, linear where not saturated, a constant torque where saturated.
+    force, matrix, linear = _assemble(v, False, *args)
+    servo = np.minimum(np.maximum(servo_offset - servo_rate * v, -servo_power), servo_power)
     v_next = spd_solve(matrix, momentum_free + dt * (linear * servo_offset + (1.0 - linear) * servo))
     # Newton steps from that secant start, each backtracked until the residual's norm falls (Armijo): a plain
     # Newton step cycles where the servo clamp or a Coulomb kink switches within the step, and the servos then
     # chatter (seen at 1 ms on noisy measured angles with two undamped steps).
-    residual, matrix = _step_residual(v_next, jac_long, jac_lat, mass_damped, momentum_free, dt, mu_long, mu_lat,
-                                      c_long, c_lat, normal_force, eps, shape, jac_head, head_coulomb, joint_coulomb,
-                                      joint_eps, servo_offset, servo_rate, servo_power)
+    residual, matrix = _step_residual(v_next, jac_long, jac_lat, spans, mass_damped, momentum_free, dt, mu_long,
+                                      mu_lat, c_long, c_lat, normal_force, eps, shape, jac_head, head_coulomb,
+                                      joint_coulomb, joint_eps, servo_offset, servo_rate, servo_power)
     for _ in range(newton_steps):
         step = spd_solve(matrix, residual)
         norm = residual @ residual
@@ -222,7 +254,7 @@ def _implicit_friction_force(jac_long, jac_lat, joint_damping, mass_matrix, mome
         for _ in range(MAX_HALVINGS):
             trial = v_next - alpha * step
             trial_residual, trial_matrix = _step_residual(
-                trial, jac_long, jac_lat, mass_damped, momentum_free, dt, mu_long, mu_lat, c_long, c_lat,
+                trial, jac_long, jac_lat, spans, mass_damped, momentum_free, dt, mu_long, mu_lat, c_long, c_lat,
                 normal_force, eps, shape, jac_head, head_coulomb, joint_coulomb, joint_eps, servo_offset, servo_rate,
                 servo_power)
             if trial_residual @ trial_residual <= (1.0 - 1e-4 * alpha) * norm:
