@@ -249,6 +249,9 @@ def _implicit_friction_force(jac_long, jac_lat, joint_damping, mass_matrix, mome
                                       joint_coulomb, joint_eps, servo_offset, servo_rate, servo_power)
     for _ in range(newton_steps):
         step = spd_solve(matrix, residual)
+        if np.abs(step).max() < NEWTON_TOLERANCE_M_S:  # converged: take the last step, nothing left to check
+            v_next = v_next - step
+            break
         norm = residual @ residual
         alpha = 1.0
         for _ in range(MAX_HALVINGS):
@@ -260,9 +263,9 @@ def _implicit_friction_force(jac_long, jac_lat, joint_damping, mass_matrix, mome
             if trial_residual @ trial_residual <= (1.0 - 1e-4 * alpha) * norm:
                 break
             alpha *= 0.5
-        moved = np.abs(trial - v_next).max()
+        moved = alpha * np.abs(step).max()
         v_next, residual, matrix = trial, trial_residual, trial_matrix
-        if moved < NEWTON_TOLERANCE_M_S:
+        if moved < NEWTON_TOLERANCE_M_S:  # the line search stalled
             break
     servo = _servo_torque(servo_offset, servo_rate, servo_power, v_next)[0]
     return (mass_matrix @ v_next - momentum_free) / dt - servo, servo  # the plant applies the servo torque itself
