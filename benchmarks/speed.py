@@ -189,7 +189,7 @@ def diagnosis(args) -> list:
     wall = time.perf_counter() - start
     print(f"diagnosis: {len(campaign.trials)} trials, {result.simulations} replays, {wall:.0f} s, verdict "
           f"{result.verdict}", flush=True)
-    return [(f"diagnosis, every candidate, {len(campaign.trials)} trials (min)", wall / 60, "<= 10", wall <= 600),
+    return [(f"diagnosis, every candidate, {len(campaign.trials)} trials (min)", wall / 60, "<= 3", wall <= 180),
             ("diagnosis: replays", result.simulations, "", None)]
 
 

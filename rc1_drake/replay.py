@@ -11,6 +11,7 @@ the sample times.
 """
 
 import dataclasses
+import functools
 
 import numpy as np
 from pydrake.trajectories import PiecewisePolynomial
@@ -20,7 +21,7 @@ from .gait import serpenoid
 from .measurements import Trial
 from .engine import make_session
 from .protocol import Run, rest_state
-from .smoothing import smoothing_fit
+from .smoothing import smoothed_samples
 
 # Stiff tracking in place of the paper's kinematic joints. Servo and wheel friction are solved implicitly
 # together (friction.FrictionForces); trials replay alike at 0.25 and 0.5 ms (Eq. 6 within 0.25%). 1 ms
@@ -37,8 +38,12 @@ class JointReference:
     t: np.ndarray  # sample times, from 0
     q: np.ndarray  # (N, 13) smoothed angles (failed joints: 0, unused)
     q_dot: np.ndarray  # (N, 13)
-    trajectory: object  # PiecewisePolynomial of q
-    noise_rad: float  # the potentiometers' noise the smoothing finds (smoothing_fit), pooled over the joints
+    noise_rad: float  # the potentiometers' noise the smoothing finds (smoothed_samples), pooled over the joints
+
+    @functools.cached_property
+    def trajectory(self):
+        """The reference as the Drake engine follows it: the C1 cubic Hermite through (t, q, q_dot)."""
+        return PiecewisePolynomial.CubicHermite(self.t, self.q.T, self.q_dot.T)
 
 
 def joint_reference(trial: Trial, measured_q=None) -> JointReference:
@@ -49,13 +54,9 @@ def joint_reference(trial: Trial, measured_q=None) -> JointReference:
     q_dot = np.zeros_like(trial.q)
     variances = []
     for j in trial.working_joints:
-        spline, variance = smoothing_fit(t, measured[:, j - 1])
-        q[:, j - 1] = spline(t)
-        q_dot[:, j - 1] = spline.derivative()(t)
+        q[:, j - 1], q_dot[:, j - 1], variance = smoothed_samples(t, measured[:, j - 1])
         variances.append(variance)
-    trajectory = PiecewisePolynomial.CubicHermite(t, q.T, q_dot.T)
-    return JointReference(t=t, q=q, q_dot=q_dot, trajectory=trajectory,
-                          noise_rad=float(np.sqrt(np.mean(variances))) if variances else 0.0)
+    return JointReference(t=t, q=q, q_dot=q_dot, noise_rad=float(np.sqrt(np.mean(variances))) if variances else 0.0)
 
 
 def replay_scenario(trial: Trial, friction: Friction, effects=None, numerics=None) -> Scenario:

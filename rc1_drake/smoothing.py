@@ -20,8 +20,9 @@ LOG10_LAM_BOUNDS = (-15.0, 5.0)  # lam in s^3: from interpolation to a straight 
 
 
 @njit(cache=True)
-def gcv_terms(h, y, lam):
-    """(|y - f|^2, tr(I - A)) of the smoothing spline with weight lam at samples spaced by h."""
+def _reinsch(h, y, lam):
+    """The Reinsch form's solve: Q's columns (a, b, c), Q'Q's bands (d0, d1, d2), B's LDL' factors (d, l1, l2),
+    gamma = B^-1 Q'y (the spline's second derivatives at the inner samples) and Q gamma (= (y - f) / lam)."""
     n = len(y)
     m = n - 2
     # Column i of Q has a[i], b[i], c[i] in rows i, i+1, i+2.
@@ -77,6 +78,14 @@ def gcv_terms(h, y, lam):
     residual[:m] += a * gamma
     residual[1:m + 1] += b * gamma
     residual[2:] += c * gamma
+    return d0, d1, d2, d, l1, l2, gamma, residual
+
+
+@njit(cache=True)
+def gcv_terms(h, y, lam):
+    """(|y - f|^2, tr(I - A)) of the smoothing spline with weight lam at samples spaced by h."""
+    m = len(y) - 2
+    d0, d1, d2, d, l1, l2, _, residual = _reinsch(h, y, lam)
     rss = lam * lam * float(residual @ residual)
     # Bands of S = B^-1 (Hutchinson-de Hoog): S = D^-1 L^-1 + (I - L') S, from the last row up.
     s0 = np.zeros(m + 2)
@@ -90,6 +99,22 @@ def gcv_terms(h, y, lam):
         s0[i] = 1.0 / d[i] - p * s1[i] - q * s2[i]
     trace = float(np.sum(s0[:m] * d0) + 2.0 * np.sum(s1[:m] * d1) + 2.0 * np.sum(s2[:m] * d2))
     return rss, lam * trace
+
+
+@njit(cache=True)
+def spline_samples(h, y, lam):
+    """The smoothing spline's values f and slopes f' at the samples: f = y - lam Q gamma, and the natural
+    cubic's slope from its values and second derivatives (0 at the ends) on each interval."""
+    n = len(y)
+    _, _, _, _, _, _, gamma, residual = _reinsch(h, y, lam)
+    f = y - lam * residual
+    second = np.zeros(n)
+    second[1:n - 1] = gamma
+    slope = np.empty(n)
+    for i in range(n - 1):
+        slope[i] = (f[i + 1] - f[i]) / h[i] - h[i] * (2.0 * second[i] + second[i + 1]) / 6.0
+    slope[n - 1] = (f[n - 1] - f[n - 2]) / h[n - 2] + h[n - 2] * (second[n - 2] + 2.0 * second[n - 1]) / 6.0
+    return f, slope
 
 
 def gcv_lambda(x, y) -> float:
@@ -108,6 +133,17 @@ def gcv_lambda(x, y) -> float:
 def smoothing_spline(x, y):
     """The GCV cubic smoothing spline of y(x) (a scipy BSpline)."""
     return smoothing_fit(x, y)[0]
+
+
+def smoothed_samples(x, y) -> tuple:
+    """(values, slopes, noise variance) of the GCV cubic smoothing spline of y(x) at the samples x: what
+    smoothing_fit's spline gives there, without building the spline."""
+    x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
+    lam = gcv_lambda(x, y)
+    h = np.diff(x)
+    rss, trace = gcv_terms(h, y, lam)
+    values, slopes = spline_samples(h, y, lam)
+    return values, slopes, rss / trace
 
 
 def smoothing_fit(x, y) -> tuple:

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from scipy.interpolate import make_smoothing_spline
 
-from rc1_drake.smoothing import gcv_lambda, gcv_terms, smoothing_fit, smoothing_spline
+from rc1_drake.smoothing import gcv_lambda, gcv_terms, smoothed_samples, smoothing_fit, smoothing_spline
 
 
 def _dense(x, y, lam):
@@ -65,3 +65,16 @@ def test_the_noise_estimate_counts_the_splines_degrees_of_freedom():
         naive.append(np.mean((y - spline(t)) ** 2))
     assert np.sqrt(np.mean(estimates)) == pytest.approx(noise, rel=0.03)  # unbiased (40 x 300 samples)
     assert np.sqrt(np.mean(naive)) < 0.97 * noise  # the residuals' RMS alone is low
+
+
+def test_samples_of_the_spline_match_scipys_spline_values_and_slopes():
+    """smoothed_samples (Reinsch form, compiled) against scipy's make_smoothing_spline at the same weight:
+    the same natural cubic smoothing spline, so the same values and slopes at the samples, ends included."""
+    rng = np.random.default_rng(7)
+    t = np.cumsum(rng.uniform(0.005, 0.015, 400))
+    y = np.sin(3 * t) + 0.3 * t + rng.normal(0, 0.01, len(t))
+    values, slopes, variance = smoothed_samples(t, y)
+    spline, expected_variance = smoothing_fit(t, y)
+    np.testing.assert_allclose(values, spline(t), atol=1e-9)
+    np.testing.assert_allclose(slopes, spline.derivative()(t), atol=1e-6)
+    assert variance == pytest.approx(expected_variance, rel=1e-9)
