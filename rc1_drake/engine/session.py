@@ -106,91 +106,36 @@ class CompiledSession:
 
     def simulate(self, scenario: Scenario, *, initial=None) -> Run:
         """Run `scenario` (from `initial`, a plant state, if given), as protocol.Session.simulate does."""
-        numbers = self.numbers
-        geometry = numbers.geometry
         setup = model_setup(scenario.effects)
         if setup.extra_forces:
             return self._on_drake(scenario, initial)
-        dt = scenario.numerics.time_step_s
-        params = friction_parameters(friction=scenario.friction, sgn_smoothing_m_s=scenario.numerics.sgn_smoothing_m_s,
-                                     setup=setup, geometry=geometry)
-        limit = scenario.servo.torque_limit_Nm
-        power = numbers.effort_limit.copy() if limit is None else np.full(NUM_JOINTS, float(limit))
-        locked = np.zeros(NUM_JOINTS, dtype=np.bool_)
-        x = np.array(initial_state(scenario, geometry) if initial is None else initial, dtype=float)
+        x = np.array(initial_state(scenario, self.geometry) if initial is None else initial, dtype=float)
         if x.shape != (32,):
             raise ValueError(f"initial state must have 32 entries, got shape {x.shape}")
-        t_end = scenario.stop.time_limit_s
-        steps = _updates_before(t_end, dt)
-        later = sorted((f for f in scenario.failures if 0.0 < f.time_s < t_end), key=lambda f: f.time_s)
-        for failure in scenario.failures:
-            if failure.time_s == 0.0:  # as configure_context: the switch acts on the start state
-                self._fail(failure, params, power, locked, x)
-
-        period = scenario.numerics.log_period_s
-        if period > 0:
-            log_t = np.arange(int(math.floor(t_end / period + 1e-9)) + 1) * period
-            log_steps = np.array([_updates_before(t, dt) for t in log_t], dtype=np.int64)
-        else:
-            log_steps = np.arange(steps + 1, dtype=np.int64)
-            log_t = log_steps * dt
-        log_state = np.zeros((len(log_steps), 32))
-        log_torque = np.zeros((len(log_steps), NUM_JOINTS))
-
-        source, gait, heading, knots = self._source(scenario)
-        stop = scenario.stop
-        stop_row = np.array([np.nan if stop.line_x_m is None else stop.line_x_m,
-                             np.inf if stop.revolutions is None else 2 * math.pi * stop.revolutions, x[2]])
-        gravity = setup.gravity
-        model = np.array([gravity[0], gravity[1], float(bool(gravity[0] or gravity[1]))])
-        s = scenario.servo
-        gains = np.array([s.kp_Nm_per_rad, s.ki_Nm_per_rad_s, s.kd_Nm_s_per_rad])
-        constant = (log_steps, log_state, log_torque, source, gait, heading, *knots, gains, stop_row, model,
-                    numbers.masses(setup.payload_module, setup.payload_kg), numbers.central_yaw_inertia, numbers.com,
-                    numbers.effort_limit, numbers.lower_limit, numbers.upper_limit, *geometry.arrays)
-        carry = [x, np.zeros(NUM_JOINTS), np.zeros(1), np.zeros(1, dtype=np.int64), params, power, locked,
-                 np.zeros(1, dtype=np.int64), np.zeros(NUM_JOINTS)]
-
-        def advance(carry, k0, k1, t_first=np.nan):
-            x, z, zh, seg, params, power, locked, log_next, last = carry
-            log_steps, *rest = constant
-            return _advance(x, z, zh, seg, k0, k1, t_first, dt, np.zeros(16), params, power, locked, log_steps,
-                            log_t, log_next, last, *rest)
-
-        def probe(k, t, logs):
-            """The step at k without taking it: its servo torque, and the logs due then if `logs`."""
-            copy = [np.array(c, copy=True) for c in carry]
-            if not logs:
-                copy[7][0] = len(log_steps)
-            advance(copy, k, k + 1, t)
-            carry[7][0] = copy[7][0]
-            return copy[8]
-
+        run = _CompiledRun(self, scenario, setup, x)
+        dt, t_end = scenario.numerics.time_step_s, scenario.stop.time_limit_s
         start = time.perf_counter()
         status, k = 0, 0
-        for failure in later:  # as Session: advance to the failure, switch, go on
-            k_fail = _updates_before(failure.time_s, dt)
-            status, k = advance(carry, k, k_fail)
+        for failure in sorted((f for f in scenario.failures if 0.0 < f.time_s < t_end), key=lambda f: f.time_s):
+            status, k = run.advance(k, _updates_before(failure.time_s, dt))  # as Session: to the failure, switch, on
             if status:
                 break
-            due = carry[7][0]
-            if due < len(log_steps) and log_steps[due] == k and log_t[due] <= failure.time_s:
-                probe(k, failure.time_s, True)  # a log at t_f itself is published by AdvanceTo(t_f): before the switch
-            self._fail(failure, carry[4], carry[5], carry[6], carry[0])
+            if run.log_due(k, failure.time_s):
+                run.probe(k, failure.time_s, logs=True)  # a log at t_f itself is published by AdvanceTo(t_f): before
+            self._fail(failure, run.params, run.power, run.locked, run.x)
         if not status:
-            status, k = advance(carry, k, steps)
+            status, k = run.advance(k, _updates_before(t_end, dt))
         wall = time.perf_counter() - start
         t_stop = k * dt if status != 0 else t_end
         if status == NOT_FINITE:
             raise Rc1Error(f"simulation failed at t = {t_stop:.3f} s: the state is not finite")
-        rows = int(carry[7][0])
-        t, state, torque = log_t[:rows], log_state[:rows], log_torque[:rows]
-        if rows == 0 or t[-1] < t_stop - 1e-12:  # close the logs at the exact stop time, as the Drake engine does
+        t, state, torque = run.logs()
+        if len(t) == 0 or t[-1] < t_stop - 1e-12:  # close the logs at the exact stop time, as the Drake engine does
             t = np.append(t, t_stop)
-            state = np.vstack([state, carry[0]])
-            torque = np.vstack([torque, probe(k, t_stop, False)])
-        return Run(scenario=scenario, t=t, state=state.copy(), servo_torque=torque.copy(),
-                   stop_reason=_REASON.get(status, "timed_out"), wall_time_s=wall, geometry=geometry)
+            state = np.vstack([state, run.x])
+            torque = np.vstack([torque, run.probe(k, t_stop, logs=False)])
+        return Run(scenario=scenario, t=t, state=state, servo_torque=torque, stop_reason=_REASON.get(status, "timed_out"),
+                   wall_time_s=wall, geometry=self.geometry)
 
     def _fail(self, failure, params, power, locked, x) -> None:
         """servo.FailureSwitch.fail on the compiled engine's arrays."""
@@ -220,3 +165,75 @@ class CompiledSession:
             heading[5 + 3:] = (NUM_JOINTS + 1 - np.arange(1, NUM_JOINTS + 1)) / (NUM_JOINTS + 1)
         empty = (np.zeros(2), np.zeros((2, NUM_JOINTS)), np.zeros((2, NUM_JOINTS)))
         return SERPENOID, np.array([amp, omega, phase, bias]), heading, empty
+
+
+class _CompiledRun:
+    """One run's arrays for run._advance: the carried state (changed in place), the logs, the constants."""
+
+    def __init__(self, session: CompiledSession, scenario: Scenario, setup, x):
+        numbers = session.numbers
+        self.dt = scenario.numerics.time_step_s
+        self.params = friction_parameters(friction=scenario.friction,
+                                          sgn_smoothing_m_s=scenario.numerics.sgn_smoothing_m_s, setup=setup,
+                                          geometry=numbers.geometry)
+        limit = scenario.servo.torque_limit_Nm
+        self.power = numbers.effort_limit.copy() if limit is None else np.full(NUM_JOINTS, float(limit))
+        self.locked = np.zeros(NUM_JOINTS, dtype=np.bool_)
+        self.x = x
+        for failure in scenario.failures:
+            if failure.time_s == 0.0:  # as configure_context: the switch acts on the start state
+                session._fail(failure, self.params, self.power, self.locked, self.x)
+        self.z, self.z_heading, self.segment = np.zeros(NUM_JOINTS), np.zeros(1), np.zeros(1, dtype=np.int64)
+        self.log_next, self.last_torque = np.zeros(1, dtype=np.int64), np.zeros(NUM_JOINTS)
+        self.log_t, self.log_steps = _log_schedule(scenario.numerics.log_period_s, scenario.stop.time_limit_s, self.dt)
+        self.log_state = np.zeros((len(self.log_steps), 32))
+        self.log_torque = np.zeros((len(self.log_steps), NUM_JOINTS))
+        source, gait, heading, knots = session._source(scenario)
+        stop = scenario.stop
+        stop_row = np.array([np.nan if stop.line_x_m is None else stop.line_x_m,
+                             np.inf if stop.revolutions is None else 2 * math.pi * stop.revolutions, x[2]])
+        gravity = setup.gravity
+        model = np.array([gravity[0], gravity[1], float(bool(gravity[0] or gravity[1]))])
+        s = scenario.servo
+        gains = np.array([s.kp_Nm_per_rad, s.ki_Nm_per_rad_s, s.kd_Nm_s_per_rad])
+        self.constant = (self.log_state, self.log_torque, source, gait, heading, *knots, gains, stop_row, model,
+                         numbers.masses(setup.payload_module, setup.payload_kg), numbers.central_yaw_inertia,
+                         numbers.com, numbers.effort_limit, numbers.lower_limit, numbers.upper_limit,
+                         *numbers.geometry.arrays)
+
+    def advance(self, k0: int, k1: int, t_first: float = np.nan, *, carried=None) -> tuple:
+        """Updates k0 <= k < k1 (run._advance) on the carried state, or on `carried` (a copy) if given."""
+        x, z, zh, seg, params, power, locked, log_next, last = carried or self._carried()
+        return _advance(x, z, zh, seg, k0, k1, t_first, self.dt, np.zeros(16), params, power, locked, self.log_steps,
+                        self.log_t, log_next, last, *self.constant)
+
+    def _carried(self) -> list:
+        return [self.x, self.z, self.z_heading, self.segment, self.params, self.power, self.locked, self.log_next,
+                self.last_torque]
+
+    def log_due(self, k: int, t: float) -> bool:
+        due = self.log_next[0]
+        return due < len(self.log_steps) and self.log_steps[due] == k and self.log_t[due] <= t
+
+    def probe(self, k: int, t: float, *, logs: bool) -> np.ndarray:
+        """The step at k, at time t, without taking it: its servo torque; it writes the logs due then if `logs`."""
+        copy = [np.array(c, copy=True) for c in self._carried()]
+        if not logs:
+            copy[7][0] = len(self.log_steps)
+        self.advance(k, k + 1, t, carried=copy)
+        if logs:
+            self.log_next[0] = copy[7][0]
+        return copy[8]
+
+    def logs(self) -> tuple:
+        rows = int(self.log_next[0])
+        return self.log_t[:rows].copy(), self.log_state[:rows].copy(), self.log_torque[:rows].copy()
+
+
+def _log_schedule(period: float, t_end: float, dt: float) -> tuple:
+    """The loggers' times (every `period` from 0 to t_end; every update if 0) and the state index each records."""
+    if period > 0:
+        log_t = np.arange(int(math.floor(t_end / period + 1e-9)) + 1) * period
+        return log_t, np.array([_updates_before(t, dt) for t in log_t], dtype=np.int64)
+    steps = np.arange(_updates_before(t_end, dt) + 1, dtype=np.int64)
+    return steps * dt, steps
