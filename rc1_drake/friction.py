@@ -53,21 +53,23 @@ PAPER_SHAPE = np.array([0.0, 0.0, 0.0, 0.01])
 
 
 @jit
-def _coulomb1(u, mu_n, eps, asymmetry, ratio, speed):
+def _coulomb1(u, mu_n, eps, asymmetry, ratio, speed, clip=True):
     """The Coulomb term mu N (1 + a sgn(u)) (1 + r exp(-(u/v_s)^2)) sgn(u) of one slip speed u, and the secant
     and tangent rates of the whole friction law f(u) = -(c u + that): f = -secant u, df/du = -tangent (before
     adding c).
 
     a != 0 makes sliding toward +u resist more than toward -u (mu N (1 + a) against mu N (1 - a));
     r > 0 adds breakaway friction that fades above the Stribeck speed v_s. The tangent is clipped at 0
-    (a Stribeck law falls with speed) so that the implicit solve's matrix stays positive definite."""
+    (a Stribeck law falls with speed) so that the implicit solve's matrix stays positive definite; `clip=False`
+    gives the exact derivative (the solve's sensitivities, engine/tangent.py)."""
     root = np.sqrt(u * u + eps * eps)
     s = u / root
     ds = eps * eps / (root * root * root)
     decay = np.exp(-(u / speed) ** 2) if ratio != 0.0 else 0.0
     magnitude = mu_n * (1.0 + asymmetry * s) * (1.0 + ratio * decay)
     slope = mu_n * (asymmetry * ds * (1.0 + ratio * decay) - (1.0 + asymmetry * s) * ratio * decay * 2.0 * u / speed**2)
-    return magnitude * s, magnitude / root, max(slope * s + magnitude * ds, 0.0)
+    tangent = slope * s + magnitude * ds
+    return magnitude * s, magnitude / root, max(tangent, 0.0) if clip else tangent
 
 
 @jit
@@ -111,8 +113,8 @@ def wheel_friction_forces(v_long, v_lat, mu_long, mu_lat, c_long, c_lat, normal_
 
 
 @jit
-def spd_solve(matrix, rhs):
-    """matrix^-1 rhs for a symmetric positive definite matrix, by Cholesky (LU if it is not definite).
+def cholesky(matrix):
+    """The lower Cholesky factor of a symmetric matrix, or an empty array if it is not positive definite.
     The step's matrices are 16 x 16: a hand loop beats LAPACK's call overhead several times."""
     n = matrix.shape[0]
     low = np.zeros((n, n))
@@ -121,7 +123,7 @@ def spd_solve(matrix, rhs):
         for k in range(j):
             pivot -= low[j, k] * low[j, k]
         if not pivot > 0.0:
-            return np.linalg.solve(matrix, rhs)
+            return np.zeros((0, 0))
         root = np.sqrt(pivot)
         low[j, j] = root
         for i in range(j + 1, n):
@@ -129,6 +131,13 @@ def spd_solve(matrix, rhs):
             for k in range(j):
                 value -= low[i, k] * low[j, k]
             low[i, j] = value / root
+    return low
+
+
+@jit
+def cholesky_solve(low, rhs):
+    """matrix^-1 rhs from matrix's lower Cholesky factor."""
+    n = low.shape[0]
     out = rhs.copy()
     for i in range(n):
         for k in range(i):
@@ -139,6 +148,15 @@ def spd_solve(matrix, rhs):
             out[i] -= low[k, i] * out[k]
         out[i] /= low[i, i]
     return out
+
+
+@jit
+def spd_solve(matrix, rhs):
+    """matrix^-1 rhs for a symmetric positive definite matrix, by Cholesky (LU if it is not definite)."""
+    low = cholesky(matrix)
+    if low.shape[0] == 0:
+        return np.linalg.solve(matrix, rhs)
+    return cholesky_solve(low, rhs)
 
 
 @jit
@@ -169,10 +187,11 @@ def _span(jac_long, jac_lat, w):
 @jit
 def _assemble(v_next, tangent, jac_long, jac_lat, spans, mass_damped, dt, mu_long, mu_lat, c_long, c_lat,
               normal_force, eps, shape, jac_head, head_coulomb, joint_coulomb, joint_eps, servo_offset, servo_rate,
-              servo_power):
+              servo_power, exact=False):
     """The step's generalized force f(v+) (wheels, head, joint Coulomb, servos; Eqs. 4-5) and the matrix
     mass_damped + dt * (rate of -f): its tangent (Newton) if `tangent`, else its secant (the start, which
-    linearizes each Coulomb term through the origin). Also returns which servos are not saturated."""
+    linearizes each Coulomb term through the origin); `exact`: the tangent unclipped (_coulomb1). Also returns
+    which servos are not saturated."""
     n = v_next.shape[0]
     force = np.zeros(n)
     matrix = mass_damped.copy()
@@ -182,8 +201,8 @@ def _assemble(v_next, tangent, jac_long, jac_lat, spans, mass_damped, dt, mu_lon
         for a in range(span):
             u_long += jac_long[w, a] * v_next[a]
             u_lat += jac_lat[w, a] * v_next[a]
-        c_l, s_l, t_l = _coulomb1(u_long, mu_long * normal_force[w], eps, shape[1], 0.0, shape[3])
-        c_t, s_t, t_t = _coulomb1(u_lat, mu_lat * normal_force[w], eps, shape[0], shape[2], shape[3])
+        c_l, s_l, t_l = _coulomb1(u_long, mu_long * normal_force[w], eps, shape[1], 0.0, shape[3], not exact)
+        c_t, s_t, t_t = _coulomb1(u_lat, mu_lat * normal_force[w], eps, shape[0], shape[2], shape[3], not exact)
         f_long, f_lat = -(c_long * u_long + c_l), -(c_lat * u_lat + c_t)
         d_long = dt * (c_long + (t_l if tangent else s_l))
         d_lat = dt * (c_lat + (t_t if tangent else s_t))
@@ -346,8 +365,10 @@ def toe_slice(num_wheels: int) -> slice:
 
 
 @jit
-def _friction_step(x, other_force, mass_matrix, dt, params, newton_steps, servo_command, servo_power, servo_gains,
-                   joint_in_parent, joint_in_child, wheel_module, wheel_offset, wheel_toe):
+def _friction_problem(x, other_force, mass_matrix, dt, params, servo_command, servo_power, servo_gains,
+                      joint_in_parent, joint_in_child, wheel_module, wheel_offset, wheel_toe):
+    """The implicit step's data at state x: wheel Jacobians along and across the wheels, joint damping,
+    the free momentum, the friction-law terms and the servos' backward-Euler offset, rate and power."""
     nw = wheel_module.shape[0]
     toe = wheel_toe * np.exp(1j * params[PER_WHEEL + nw : PER_WHEEL + 2 * nw])
     _, direction, jacobian = _wheel_kinematics(x, joint_in_parent, joint_in_child, wheel_module, wheel_offset, toe)
@@ -373,11 +394,21 @@ def _friction_step(x, other_force, mass_matrix, dt, params, newton_steps, servo_
     servo_offset[3:] = servo_command + kd * v[3:]
     servo_rate[3:] = kd + dt * kp
     power[3:] = servo_power
-    return _implicit_friction_force(jac_long, jac_lat, joint_damping, mass_matrix, mass_matrix @ v + dt * other_force,
-                                    v, dt, params[MU_LONG], params[MU_LAT], params[C_LONG], params[C_LAT],
-                                    params[PER_WHEEL : PER_WHEEL + nw], params[EPS], newton_steps, params[SHAPE],
-                                    jac_head, params[HEAD_MU] * params[HEAD_NORMAL], joint_coulomb, JOINT_EPS_RAD_S,
-                                    servo_offset, servo_rate, power)
+    return (jac_long, jac_lat, joint_damping, mass_matrix @ v + dt * other_force, params[PER_WHEEL : PER_WHEEL + nw],
+            jac_head, params[HEAD_MU] * params[HEAD_NORMAL], joint_coulomb, servo_offset, servo_rate, power, toe)
+
+
+@jit
+def _friction_step(x, other_force, mass_matrix, dt, params, newton_steps, servo_command, servo_power, servo_gains,
+                   joint_in_parent, joint_in_child, wheel_module, wheel_offset, wheel_toe):
+    (jac_long, jac_lat, joint_damping, momentum_free, normal, jac_head, head_coulomb, joint_coulomb, servo_offset,
+     servo_rate, power, _) = _friction_problem(x, other_force, mass_matrix, dt, params, servo_command, servo_power,
+                                               servo_gains, joint_in_parent, joint_in_child, wheel_module,
+                                               wheel_offset, wheel_toe)
+    return _implicit_friction_force(jac_long, jac_lat, joint_damping, mass_matrix, momentum_free, x[x.shape[0] // 2:],
+                                    dt, params[MU_LONG], params[MU_LAT], params[C_LONG], params[C_LAT], normal,
+                                    params[EPS], newton_steps, params[SHAPE], jac_head, head_coulomb, joint_coulomb,
+                                    JOINT_EPS_RAD_S, servo_offset, servo_rate, power)
 
 
 class FrictionForces(LeafSystem):

@@ -13,6 +13,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
+from typing import Optional
 
 import numpy as np
 from pydrake.systems.analysis import Simulator
@@ -83,6 +84,9 @@ class Run:
     stop_reason: str  # "crossed", "circling" or "timed_out"
     wall_time_s: float
     geometry: ChainGeometry  # of the plant that made the run
+    # Forward sensitivities d state / d parameter (N, P, 32) for the parameters named (compiled engine only).
+    sensitivity: Optional[np.ndarray] = None
+    sensitivity_names: tuple = ()
 
     @property
     def head_xy(self):

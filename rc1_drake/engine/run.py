@@ -19,8 +19,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..friction import spd_solve
 from ..kinematics import jit
+from .dynamics import _chain_terms
 from .step import _plant_step
+from .tangent import _step_tangent
 
 RUNNING, CROSSED, CIRCLING, NOT_FINITE = 0, 1, 2, 3
 SERPENOID, REFERENCE = 0, 1
@@ -68,10 +71,47 @@ def _command(t, x, source, gait, heading, z_heading, breaks, values, rates, segm
 
 
 @jit
+def _heading_gain(x, heading, z_heading):
+    """d(feedback)/d(error) and d/d(z_heading) of the heading controller at x: kp and ki, or 0 where it saturates."""
+    if heading[0] == 0.0:
+        return 0.0, 0.0
+    nq = heading.shape[0] - 5
+    raw = heading[2] * z_heading[0] + heading[1] * (heading[5:] @ x[:nq] - heading[4])
+    return (heading[1], heading[2]) if abs(raw) < heading[3] else (0.0, 0.0)
+
+
+@jit
+def _sensitivity_step(x, x_next, v_star, force_plus, command, sens, sens_z, sens_zh, dparams, z_heading, dt, params,
+                      power, servo_gains, gains, heading, mass, yaw_inertia, com, gravity_xy, in_plane, effort, lower,
+                      upper, locked, joint_in_parent, joint_in_child, wheel_module, wheel_offset, wheel_toe):
+    """Carry the sensitivities through one step (tangent._step_tangent), the PID's command and integrators, and
+    the heading controller (the serpenoid's and the replay reference's time terms do not depend on parameters)."""
+    nq = x.shape[0] // 2
+    num = sens.shape[0]
+    M = _chain_terms(x, mass, yaw_inertia, com, joint_in_parent, joint_in_child, gravity_xy)[0]
+    v_plus = x[nq:] + dt * spd_solve(M, force_plus)
+    weights = heading[5:]
+    kp_h, ki_h = _heading_gain(x, heading, z_heading)
+    dcommand = np.empty((num, nq - 3))
+    for d in range(num):
+        dtheta = kp_h * (weights @ sens[d, :nq]) + ki_h * sens_zh[d] if weights.shape[0] else 0.0
+        dcommand[d] = gains[1] * sens_z[d] + gains[0] * (dtheta - sens[d, 3:nq]) - gains[2] * sens[d, nq + 3:]
+    new = _step_tangent(x, v_plus, v_star, x_next[nq:], sens, dparams, dcommand, dt, params, command, power,
+                        servo_gains, mass, yaw_inertia, com, gravity_xy, in_plane, effort, lower, upper, locked,
+                        joint_in_parent, joint_in_child, wheel_module, wheel_offset, wheel_toe)
+    kp_n, ki_n = _heading_gain(x_next, heading, z_heading)
+    for d in range(num):
+        de = weights @ new[d, :nq] if weights.shape[0] else 0.0
+        sens_z[d] += dt * (kp_n * de + ki_n * sens_zh[d] - new[d, 3:nq])
+        sens_zh[d] += dt * de
+    sens[:] = new
+
+
+@jit
 def _advance(x, z_pid, z_heading, segment, k0, k1, t_first, dt, extra_force, params, power, locked,
              log_steps, log_times, log_next, last_torque, log_state, log_torque, source, gait, heading, breaks, values,
              rates, gains, stop, model, mass, yaw_inertia, com, effort, lower, upper, joint_in_parent,
-             joint_in_child, wheel_module, wheel_offset, wheel_toe):
+             joint_in_child, wheel_module, wheel_offset, wheel_toe, sens, sens_z, sens_zh, dparams, log_sens):
     """Take the updates k0 <= k < k1 in place on the carried state (x, z_pid, z_heading, segment, log_next,
     last_torque); returns (status, k) with k the index of the state x now holds. Failures change params,
     power and locked between calls (session.py), as the failure switch does between AdvanceTo calls.
@@ -79,6 +119,8 @@ def _advance(x, z_pid, z_heading, segment, k0, k1, t_first, dt, extra_force, par
     gains: [kp, ki, kd];
     stop: [line x (nan: none), yaw turn (inf: none), yaw_0]; model: [gravity x, y, in plane (0/1)];
     t_first (nan: k0 dt) is the time of the first update (the Simulator's time at a stop between steps).
+    Forward sensitivities (P directions, P may be 0): sens (P, 32), sens_z (P, 13) and sens_zh (P,) carry
+    d(x, z_pid, z_heading) along the parameter directions dparams (P, len(params)); log_sens (rows, P, 32).
     """
     nq = x.shape[0] // 2
     gravity_xy = model[0] + 1j * model[1]
@@ -89,12 +131,15 @@ def _advance(x, z_pid, z_heading, segment, k0, k1, t_first, dt, extra_force, par
         theta, theta_dot, error = _command(t, x, source, gait, heading, z_heading, breaks, values, rates, segment)
         e_pos = theta - x[3:nq]
         command = gains[1] * z_pid + gains[0] * e_pos + gains[2] * (theta_dot - x[nq + 3:])
-        x_next, torque = _plant_step(x, dt, params, command, power, servo_gains, extra_force, mass, yaw_inertia,
-                                     com, gravity_xy, in_plane, effort, lower, upper, locked, joint_in_parent,
-                                     joint_in_child, wheel_module, wheel_offset, wheel_toe)
+        x_next, torque, v_star, force_plus = _plant_step(x, dt, params, command, power, servo_gains, extra_force,
+                                                         mass, yaw_inertia, com, gravity_xy, in_plane, effort, lower,
+                                                         upper, locked, joint_in_parent, joint_in_child, wheel_module,
+                                                         wheel_offset, wheel_toe)
         while log_next[0] < log_steps.shape[0] and log_steps[log_next[0]] == k:
             row = log_next[0]
             log_state[row] = x
+            if sens.shape[0]:
+                log_sens[row] = sens
             log_torque[row] = torque
             if log_times[row] != t:  # a log between two updates: the servo output at its own time
                 theta, theta_dot, _ = _command(log_times[row], x, source, gait, heading, z_heading, breaks, values,
@@ -108,6 +153,11 @@ def _advance(x, z_pid, z_heading, segment, k0, k1, t_first, dt, extra_force, par
         last_torque[:] = torque
         # The plant updates its state before the controllers update theirs (an unrestricted update comes
         # first in Drake's Simulator), so the integrators see x_{k+1} and the command's time t_k.
+        if sens.shape[0]:
+            _sensitivity_step(x, x_next, v_star, force_plus, command, sens, sens_z, sens_zh, dparams, z_heading, dt,
+                              params, power, servo_gains, gains, heading, mass, yaw_inertia, com, gravity_xy, in_plane,
+                              effort, lower, upper, locked, joint_in_parent, joint_in_child, wheel_module,
+                              wheel_offset, wheel_toe)
         theta, _, error = _command(t, x_next, source, gait, heading, z_heading, breaks, values, rates, segment)
         z_pid += dt * (theta - x_next[3:nq])
         z_heading[0] += dt * error

@@ -14,6 +14,7 @@ import numpy as np
 
 from ..config import NUM_JOINTS, Rc1Error, Scenario
 from ..effects import commanded_gait, model_setup
+from .. import friction as fr
 from ..friction import FAILED, FREE, LOCKED, friction_parameters
 from ..gait import serpenoid_parameters
 from ..protocol import Run, initial_state
@@ -104,15 +105,18 @@ class CompiledSession:
             self._drake = Session(scenario, joint_reference=self._trajectory())
         return self._drake.simulate(scenario, initial=initial)
 
-    def simulate(self, scenario: Scenario, *, initial=None) -> Run:
-        """Run `scenario` (from `initial`, a plant state, if given), as protocol.Session.simulate does."""
+    def simulate(self, scenario: Scenario, *, initial=None, sensitivities=()) -> Run:
+        """Run `scenario` (from `initial`, a plant state, if given), as protocol.Session.simulate does; with
+        `sensitivities` (names of SENSITIVITY_PARAMETERS) the Run also carries d state / d parameter."""
         setup = model_setup(scenario.effects)
         if setup.extra_forces:
+            if sensitivities:
+                raise Rc1Error("sensitivities need the compiled engine, which cannot run a Python force")
             return self._on_drake(scenario, initial)
         x = np.array(initial_state(scenario, self.geometry) if initial is None else initial, dtype=float)
         if x.shape != (32,):
             raise ValueError(f"initial state must have 32 entries, got shape {x.shape}")
-        run = _CompiledRun(self, scenario, setup, x)
+        run = _CompiledRun(self, scenario, setup, x, tuple(sensitivities))
         dt, t_end = scenario.numerics.time_step_s, scenario.stop.time_limit_s
         start = time.perf_counter()
         status, k = 0, 0
@@ -129,13 +133,15 @@ class CompiledSession:
         t_stop = k * dt if status != 0 else t_end
         if status == NOT_FINITE:
             raise Rc1Error(f"simulation failed at t = {t_stop:.3f} s: the state is not finite")
-        t, state, torque = run.logs()
+        t, state, torque, sensitivity = run.logs()
         if len(t) == 0 or t[-1] < t_stop - 1e-12:  # close the logs at the exact stop time, as the Drake engine does
             t = np.append(t, t_stop)
             state = np.vstack([state, run.x])
             torque = np.vstack([torque, run.probe(k, t_stop, logs=False)])
+            sensitivity = np.concatenate([sensitivity, run.sens[None]])
         return Run(scenario=scenario, t=t, state=state, servo_torque=torque, stop_reason=_REASON.get(status, "timed_out"),
-                   wall_time_s=wall, geometry=self.geometry)
+                   wall_time_s=wall, geometry=self.geometry, sensitivity=sensitivity if run.names else None,
+                   sensitivity_names=run.names)
 
     def _fail(self, failure, params, power, locked, x) -> None:
         """servo.FailureSwitch.fail on the compiled engine's arrays."""
@@ -170,7 +176,7 @@ class CompiledSession:
 class _CompiledRun:
     """One run's arrays for run._advance: the carried state (changed in place), the logs, the constants."""
 
-    def __init__(self, session: CompiledSession, scenario: Scenario, setup, x):
+    def __init__(self, session: CompiledSession, scenario: Scenario, setup, x, names=()):
         numbers = session.numbers
         self.dt = scenario.numerics.time_step_s
         self.params = friction_parameters(friction=scenario.friction,
@@ -186,6 +192,12 @@ class _CompiledRun:
         self.z, self.z_heading, self.segment = np.zeros(NUM_JOINTS), np.zeros(1), np.zeros(1, dtype=np.int64)
         self.log_next, self.last_torque = np.zeros(1, dtype=np.int64), np.zeros(NUM_JOINTS)
         self.log_t, self.log_steps = _log_schedule(scenario.numerics.log_period_s, scenario.stop.time_limit_s, self.dt)
+        self.names = names
+        self.dparams = np.array([sensitivity_direction(name, len(self.params)) for name in names]).reshape(
+            len(names), len(self.params))
+        self.sens, self.sens_z, self.sens_zh = np.zeros((len(names), 32)), np.zeros((len(names), NUM_JOINTS)), \
+            np.zeros(len(names))
+        self.log_sens = np.zeros((len(self.log_steps), len(names), 32))
         self.log_state = np.zeros((len(self.log_steps), 32))
         self.log_torque = np.zeros((len(self.log_steps), NUM_JOINTS))
         source, gait, heading, knots = session._source(scenario)
@@ -203,13 +215,13 @@ class _CompiledRun:
 
     def advance(self, k0: int, k1: int, t_first: float = np.nan, *, carried=None) -> tuple:
         """Updates k0 <= k < k1 (run._advance) on the carried state, or on `carried` (a copy) if given."""
-        x, z, zh, seg, params, power, locked, log_next, last = carried or self._carried()
+        x, z, zh, seg, params, power, locked, log_next, last, sens, sens_z, sens_zh = carried or self._carried()
         return _advance(x, z, zh, seg, k0, k1, t_first, self.dt, np.zeros(16), params, power, locked, self.log_steps,
-                        self.log_t, log_next, last, *self.constant)
+                        self.log_t, log_next, last, *self.constant, sens, sens_z, sens_zh, self.dparams, self.log_sens)
 
     def _carried(self) -> list:
         return [self.x, self.z, self.z_heading, self.segment, self.params, self.power, self.locked, self.log_next,
-                self.last_torque]
+                self.last_torque, self.sens, self.sens_z, self.sens_zh]
 
     def log_due(self, k: int, t: float) -> bool:
         due = self.log_next[0]
@@ -227,7 +239,30 @@ class _CompiledRun:
 
     def logs(self) -> tuple:
         rows = int(self.log_next[0])
-        return self.log_t[:rows].copy(), self.log_state[:rows].copy(), self.log_torque[:rows].copy()
+        return (self.log_t[:rows].copy(), self.log_state[:rows].copy(), self.log_torque[:rows].copy(),
+                self.log_sens[:rows].copy())
+
+
+SENSITIVITY_PARAMETERS = ("c_joint", "mu_lat", "mu_long", "c_lat", "c_long", "lateral_friction_asymmetry",
+                          "longitudinal_friction_asymmetry", "stribeck_ratio", "head_drag_mu", "joint_coulomb_Nm",
+                          "wheel_toe_deg")
+
+
+def sensitivity_direction(name: str, size: int) -> np.ndarray:
+    """The change of the friction parameter vector (friction.py's layout) per unit of parameter `name`."""
+    index = {"c_joint": fr.C_JOINT, "mu_lat": fr.MU_LAT, "mu_long": fr.MU_LONG, "c_lat": fr.C_LAT,
+             "c_long": fr.C_LONG, "lateral_friction_asymmetry": fr.SHAPE.start,
+             "longitudinal_friction_asymmetry": fr.SHAPE.start + 1, "stribeck_ratio": fr.SHAPE.start + 2,
+             "head_drag_mu": fr.HEAD_MU, "joint_coulomb_Nm": fr.JOINT_COULOMB}
+    direction = np.zeros(size)
+    if name == "wheel_toe_deg":
+        wheels = (size - fr.PER_WHEEL) // 2
+        direction[fr.toe_slice(wheels)] = math.pi / 180.0
+    elif name in index:
+        direction[index[name]] = 1.0
+    else:
+        raise ValueError(f"no sensitivity for '{name}' (known: {', '.join(SENSITIVITY_PARAMETERS)})")
+    return direction
 
 
 def _log_schedule(period: float, t_end: float, dt: float) -> tuple:

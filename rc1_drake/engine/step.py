@@ -97,7 +97,8 @@ def _limit_solve(q, v, v_star, A, dt, lower, upper, locked):
 def _plant_step(x, dt, params, servo_command, servo_power, servo_gains, extra_force, mass, yaw_inertia, com,
                 gravity_xy, gravity_in_plane, effort, lower, upper, locked, joint_in_parent, joint_in_child,
                 wheel_module, wheel_offset, wheel_toe):
-    """(x+, servo torque (13,)) of one Diagram step from state x (module docstring)."""
+    """(x+, servo torque (13,), v*, the force that gives the friction solve's v+ = v + dt M^-1 force) of one
+    Diagram step from state x (module docstring)."""
     nv = x.shape[0] // 2
     M, bias, gravity = _chain_terms(x, mass, yaw_inertia, com, joint_in_parent, joint_in_child, gravity_xy)
     other = -bias
@@ -114,4 +115,4 @@ def _plant_step(x, dt, params, servo_command, servo_power, servo_gains, extra_fo
     out = np.empty_like(x)
     out[:nv] = x[:nv] + dt * v_next
     out[nv:] = v_next
-    return out, servo[3:].copy()
+    return out, servo[3:].copy(), v_star, other + extra_force + friction + servo  # the last two: for tangent.py

@@ -1,0 +1,297 @@
+"""The step's tangent-linear model: forward sensitivities of a run with respect to the friction coefficients
+and the friction-law effects (CompiledSession.simulate(..., sensitivities=...)).
+
+x_{k+1} = step(x_k, p) is differentiated stage by stage (step.py): the chain's terms and the wheels' local
+Jacobians along the state's sensitivity, the implicit friction and servo solve by the implicit function
+theorem (its Newton matrix, exact), the plant's effort clamp, locked joints and the limits' active set.
+
+Differentiating the chain recursion of kinematics.py: with delta_phi_k = delta_yaw + sum_{j<k} delta_q_j,
+e_k = exp(i phi_k) moves by i delta_phi_k e_k, so a point r fixed in module k moves by i delta_phi_k R(phi_k) r,
+and the Jacobian column i (c - c_j) of a point c about a joint c_j moves by i (delta_c - delta_c_j). Each
+term below is the exact derivative of its counterpart in dynamics._chain_terms / friction._friction_step;
+tests/test_tangent.py checks them against central differences.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..friction import (C_JOINT, C_LAT, C_LONG, EPS, FAILED, FREE, HEAD_MU, HEAD_NORMAL, JOINT_COULOMB,
+                        JOINT_EPS_RAD_S, MU_LAT, MU_LONG, PER_WHEEL, SHAPE, _assemble, _coulomb1, _friction_problem,
+                        _span, cholesky, cholesky_solve, spd_solve)
+from ..kinematics import jit
+from .dynamics import _chain_terms
+from .step import LIMIT_BETA, LIMIT_STIFFNESS, LIMIT_WINDOW
+
+
+@jit
+def _chain_tangent(x, dx, w, mass, yaw_inertia, com, joint_in_parent, joint_in_child, gravity_xy):
+    """For each direction dx[p] (P, 32): (dM dx[p]) w[p], d(C v) and dg, each (P, 16), where M, C v and g
+    are dynamics._chain_terms' at x and w (P, 16) is the vector the mass matrix's derivative multiplies."""
+    nj = joint_in_parent.shape[0]
+    nm = nj + 1
+    nv = nj + 3
+    num = dx.shape[0]
+    phi = np.cumsum(x[2:nv])
+    phi_dot = np.cumsum(x[nv + 2:])
+    e = np.exp(1j * phi)
+    out_mw = np.zeros((num, nv))
+    out_bias = np.zeros((num, nv))
+    out_gravity = np.zeros((num, nv))
+    p = np.empty(nm, dtype=np.complex128)
+    acc = np.empty(nm, dtype=np.complex128)
+    joint_xy = np.empty(nj, dtype=np.complex128)
+    dp = np.empty(nm, dtype=np.complex128)
+    dacc = np.empty(nm, dtype=np.complex128)
+    djoint = np.empty(nj, dtype=np.complex128)
+    jac = np.empty(nv, dtype=np.complex128)
+    djac = np.empty(nv, dtype=np.complex128)
+    for d in range(num):
+        dphi = np.cumsum(dx[d, 2:nv])
+        dphi_dot = np.cumsum(dx[d, nv + 2:])
+        p[0] = x[0] + 1j * x[1]
+        dp[0] = dx[d, 0] + 1j * dx[d, 1]
+        acc[0] = 0.0
+        dacc[0] = 0.0
+        for j in range(nj):
+            a = e[j] * joint_in_parent[j]
+            b = e[j + 1] * joint_in_child[j]
+            da = 1j * dphi[j] * a
+            db = 1j * dphi[j + 1] * b
+            joint_xy[j] = p[j] + a
+            djoint[j] = dp[j] + da
+            p[j + 1] = p[j] + a - b
+            dp[j + 1] = dp[j] + da - db
+            acc[j + 1] = acc[j] - phi_dot[j] ** 2 * a + phi_dot[j + 1] ** 2 * b
+            dacc[j + 1] = (dacc[j] - 2.0 * phi_dot[j] * dphi_dot[j] * a - phi_dot[j] ** 2 * da
+                           + 2.0 * phi_dot[j + 1] * dphi_dot[j + 1] * b + phi_dot[j + 1] ** 2 * db)
+        for k in range(nm):
+            r = e[k] * com[k]
+            dr = 1j * dphi[k] * r
+            c = p[k] + r
+            dc = dp[k] + dr
+            a_k = acc[k] - phi_dot[k] ** 2 * r
+            da_k = dacc[k] - 2.0 * phi_dot[k] * dphi_dot[k] * r - phi_dot[k] ** 2 * dr
+            n = 3 + k
+            jac[0], djac[0] = 1.0, 0.0
+            jac[1], djac[1] = 1j, 0.0
+            jac[2], djac[2] = 1j * (c - p[0]), 1j * (dc - dp[0])
+            for j in range(k):
+                jac[3 + j] = 1j * (c - joint_xy[j])
+                djac[3 + j] = 1j * (dc - djoint[j])
+            jw, djw = 0.0 + 0.0j, 0.0 + 0.0j
+            for i in range(n):
+                jw += jac[i] * w[d, i]
+                djw += djac[i] * w[d, i]
+            m = mass[k]
+            for i in range(n):
+                out_mw[d, i] += m * (np.conj(djac[i]) * jw + np.conj(jac[i]) * djw).real
+                out_bias[d, i] += m * (np.conj(djac[i]) * a_k + np.conj(jac[i]) * da_k).real
+                out_gravity[d, i] += m * (np.conj(djac[i]) * gravity_xy).real
+    return out_mw, out_bias, out_gravity
+
+
+@jit
+def _wheel_local_tangent(x, dx, joint_in_parent, joint_in_child, wheel_module, wheel_offset, wheel_toe):
+    """The wheels' local Jacobians L_w = conj(direction_w) J_w (rows: v_long + i v_lat, friction._friction_step)
+    at x, (W, 16) complex, and their derivatives along each direction dx[p], (P, W, 16) complex."""
+    nj = joint_in_parent.shape[0]
+    nv = nj + 3
+    nw = wheel_module.shape[0]
+    num = dx.shape[0]
+    phi = np.cumsum(x[2:nv])
+    e = np.exp(1j * phi)
+    p = np.empty(nj + 1, dtype=np.complex128)
+    joint_xy = np.empty(nj, dtype=np.complex128)
+    p[0] = x[0] + 1j * x[1]
+    for j in range(nj):
+        joint_xy[j] = p[j] + e[j] * joint_in_parent[j]
+        p[j + 1] = joint_xy[j] - e[j + 1] * joint_in_child[j]
+    local = np.zeros((nw, nv), dtype=np.complex128)
+    for w in range(nw):
+        k = wheel_module[w]
+        position = p[k] + e[k] * wheel_offset[w]
+        turn = np.conj(e[k] * wheel_toe[w])
+        local[w, 0] = turn
+        local[w, 1] = turn * 1j
+        local[w, 2] = turn * 1j * (position - p[0])
+        for j in range(k):
+            local[w, 3 + j] = turn * 1j * (position - joint_xy[j])
+    dlocal = np.zeros((num, nw, nv), dtype=np.complex128)
+    dp = np.empty(nj + 1, dtype=np.complex128)
+    djoint = np.empty(nj, dtype=np.complex128)
+    for d in range(num):
+        dphi = np.cumsum(dx[d, 2:nv])
+        dp[0] = dx[d, 0] + 1j * dx[d, 1]
+        for j in range(nj):
+            djoint[j] = dp[j] + 1j * dphi[j] * e[j] * joint_in_parent[j]
+            dp[j + 1] = djoint[j] - 1j * dphi[j + 1] * e[j + 1] * joint_in_child[j]
+        for w in range(nw):
+            k = wheel_module[w]
+            position = p[k] + e[k] * wheel_offset[w]
+            dposition = dp[k] + 1j * dphi[k] * e[k] * wheel_offset[w]
+            turn = np.conj(e[k] * wheel_toe[w])
+            dturn = -1j * dphi[k] * turn  # conj(i dphi e) = -i dphi conj(e)
+            dlocal[d, w, 0] = dturn
+            dlocal[d, w, 1] = dturn * 1j
+            dlocal[d, w, 2] = 1j * (dturn * (position - p[0]) + turn * (dposition - dp[0]))
+            for j in range(k):
+                dlocal[d, w, 3 + j] = 1j * (dturn * (position - joint_xy[j]) + turn * (dposition - djoint[j]))
+    return local, dlocal
+
+
+@jit
+def _coulomb_partials(u, mu_n, eps, asymmetry, ratio, speed):
+    """d/d(mu N), d/da and d/dr of friction._coulomb1's Coulomb term mu N (1 + a s)(1 + r d) s."""
+    s = u / np.sqrt(u * u + eps * eps)
+    decay = np.exp(-(u / speed) ** 2)  # also at r = 0, where d/dr needs it
+    return (1.0 + asymmetry * s) * (1.0 + ratio * decay) * s, mu_n * s * s * (1.0 + ratio * decay), \
+        mu_n * (1.0 + asymmetry * s) * decay * s
+
+
+@jit
+def _friction_tangent(x, dx, dparams, dcommand, dother, dmass_w, v_plus, mass_matrix, other_force, dt, params,
+                      servo_command, servo_power, servo_gains, joint_in_parent, joint_in_child, wheel_module,
+                      wheel_offset, wheel_toe):
+    """The friction solve's velocity v+ (friction._friction_step) differentiated along P directions: the state
+    dx (P, 32), the parameter vector dparams (P, len(params)), the servo command dcommand (P, 13) and the other
+    generalized forces dother (P, 16); dmass_w (P, 16) is (dM dx) (v+ - v). By the implicit function theorem on
+    the step's residual R(v+) = M~ v+ - M v - dt other - dt F(v+) = 0: dv+ = -K^-1 dR, with K the Newton
+    matrix at v+ (friction._assemble's exact tangent: the solve's own clips a falling Stribeck law) and dR the
+    residual's change at fixed v+."""
+    nv = x.shape[0] // 2
+    nw = wheel_module.shape[0]
+    (jac_long, jac_lat, joint_damping, _, normal, jac_head, head_coulomb, joint_coulomb, servo_offset, servo_rate,
+     power, toe) = _friction_problem(x, other_force, mass_matrix, dt, params, servo_command, servo_power, servo_gains,
+                                     joint_in_parent, joint_in_child, wheel_module, wheel_offset, wheel_toe)
+    mass_damped = mass_matrix + dt * np.diag(joint_damping)
+    spans = np.array([_span(jac_long, jac_lat, w) for w in range(nw)])
+    eps, shape = params[EPS], params[SHAPE]
+    mu_long, mu_lat, c_long, c_lat = params[MU_LONG], params[MU_LAT], params[C_LONG], params[C_LAT]
+    _, K, linear = _assemble(v_plus, True, jac_long, jac_lat, spans, mass_damped, dt, mu_long, mu_lat, c_long, c_lat,
+                             normal, eps, shape, jac_head, head_coulomb, joint_coulomb, JOINT_EPS_RAD_S, servo_offset,
+                             servo_rate, power, True)
+    low = cholesky(K)  # the exact tangent may lose definiteness where a Stribeck law falls: LU then
+    local, dlocal = _wheel_local_tangent(x, dx, joint_in_parent, joint_in_child, wheel_module, wheel_offset, toe)
+    free = params[FAILED] == FREE
+    kd = servo_gains[1]
+    out = np.empty((dx.shape[0], nv))
+    for d in range(dx.shape[0]):
+        dp = dparams[d]
+        dR = dmass_w[d] - mass_matrix @ dx[d, nv:] - dt * dother[d]
+        dR[3:] += dt * dp[C_JOINT] * np.where(free, v_plus[3:], 0.0)
+        dF = np.zeros(nv)
+        for w in range(nw):
+            u = 0.0 + 0.0j
+            du = 0.0 + 0.0j
+            for a in range(spans[w]):
+                u += local[w, a] * v_plus[a]
+                du += dlocal[d, w, a] * v_plus[a]
+            dtoe = dp[PER_WHEEL + nw + w]
+            du += -1j * u * dtoe  # a toe turns the wheel's frame: dL/dtoe = -i L
+            n_w, dn_w = normal[w], dp[PER_WHEEL + w]
+            c_l, _, t_l = _coulomb1(u.real, mu_long * n_w, eps, shape[1], 0.0, shape[3], False)
+            c_t, _, t_t = _coulomb1(u.imag, mu_lat * n_w, eps, shape[0], shape[2], shape[3], False)
+            f_l, f_t = -(c_long * u.real + c_l), -(c_lat * u.imag + c_t)
+            pl_mu, pl_a, _ = _coulomb_partials(u.real, mu_long * n_w, eps, shape[1], 0.0, shape[3])
+            pt_mu, pt_a, pt_r = _coulomb_partials(u.imag, mu_lat * n_w, eps, shape[0], shape[2], shape[3])
+            df_l = (-(c_long + t_l) * du.real - dp[C_LONG] * u.real
+                    - pl_mu * (dp[MU_LONG] * n_w + mu_long * dn_w) - pl_a * dp[SHAPE][1])
+            df_t = (-(c_lat + t_t) * du.imag - dp[C_LAT] * u.imag
+                    - pt_mu * (dp[MU_LAT] * n_w + mu_lat * dn_w) - pt_a * dp[SHAPE][0] - pt_r * dp[SHAPE][2])
+            for a in range(spans[w]):
+                dlocal_a = dlocal[d, w, a] - 1j * local[w, a] * dtoe
+                dF[a] += dlocal_a.real * f_l + dlocal_a.imag * f_t + jac_long[w, a] * df_l + jac_lat[w, a] * df_t
+        for j in range(3, nv):
+            if free[j - 3]:
+                dF[j] -= dp[JOINT_COULOMB] * v_plus[j] / np.sqrt(v_plus[j] ** 2 + JOINT_EPS_RAD_S ** 2)
+            dF[j] += linear[j] * (dcommand[d, j - 3] + kd * dx[d, nv + j])
+        head = dp[HEAD_MU] * params[HEAD_NORMAL] + params[HEAD_MU] * dp[HEAD_NORMAL]
+        if head != 0.0:
+            root = np.sqrt(v_plus[0] ** 2 + v_plus[1] ** 2 + eps * eps)
+            dF[0] -= head * v_plus[0] / root
+            dF[1] -= head * v_plus[1] / root
+        dR -= dt * dF
+        out[d] = -(cholesky_solve(low, dR) if low.shape[0] else np.linalg.solve(K, dR))
+    return out
+
+
+@jit
+def _step_tangent(x, v_plus, v_star, v_new, S, dparams, dcommand, dt, params, servo_command, servo_power, servo_gains,
+                  mass, yaw_inertia, com, gravity_xy, in_plane, effort, lower, upper, locked, joint_in_parent,
+                  joint_in_child, wheel_module, wheel_offset, wheel_toe):
+    """d x_{k+1} (P, 32) of step.py's _plant_step along state directions S (P, 32), parameter directions dparams and
+    command directions dcommand, given the step's velocities: v+ (the friction solve), v* (the free motion) and
+    v_new (after locked joints and limits). Each stage is differentiated as it is computed (step.py)."""
+    nv = x.shape[0] // 2
+    num = S.shape[0]
+    v = x[nv:]
+    M, bias, gravity = _chain_terms(x, mass, yaw_inertia, com, joint_in_parent, joint_in_child, gravity_xy)
+    other = -bias + (gravity if in_plane else np.zeros(nv))
+    mw, dbias, dgravity = _chain_tangent(x, S, np.repeat(v_plus - v, num).reshape(nv, num).T.copy(), mass,
+                                         yaw_inertia, com, joint_in_parent, joint_in_child, gravity_xy)
+    dother = -dbias + (dgravity if in_plane else np.zeros_like(dbias))
+    dv = _friction_tangent(x, S, dparams, dcommand, dother, mw, v_plus, M, other, dt, params, servo_command,
+                           servo_power, servo_gains, joint_in_parent, joint_in_child, wheel_module, wheel_offset,
+                           wheel_toe)
+    # The plant's effort clamp: M (v* - v+) = dt (clamp(servo) - servo).
+    kp, kd = servo_gains
+    rate = kd + dt * kp
+    raw = servo_command + kd * v[3:] - rate * v_plus[3:]
+    over = np.abs(np.minimum(np.maximum(raw, -servo_power), servo_power)) > effort
+    if over.any():
+        linear = np.abs(raw) < servo_power
+        mws = _chain_tangent(x, S, np.repeat(v_star - v_plus, num).reshape(nv, num).T.copy(), mass, yaw_inertia, com,
+                             joint_in_parent, joint_in_child, gravity_xy)[0]
+        for d in range(num):
+            dservo = np.where(linear, dcommand[d] + kd * S[d, nv + 3:] - rate * dv[d, 3:], 0.0)
+            rhs = -mws[d]
+            rhs[3:] -= dt * np.where(over, dservo, 0.0)
+            dv[d] += spd_solve(M, rhs)
+    # Locked joints and the limits' active set (step._limit_solve): (A_r + D) v_r = (A v*)_r + h.
+    free = np.ones(nv, dtype=np.bool_)
+    free[3:] = ~locked
+    active = np.zeros(nv, dtype=np.bool_)
+    sign = np.zeros(nv)
+    for j in range(lower.shape[0]):
+        k = 3 + j
+        if locked[j]:
+            continue
+        window = LIMIT_WINDOW * dt * max(abs(v[k]), abs(v_star[k]))
+        for s, limit in ((1.0, lower[j]), (-1.0, upper[j])):
+            inside = limit >= x[k] - window if s > 0.0 else limit <= x[k] + window
+            if inside and -s * (x[k] - limit) / (2.0 * dt) - s * v_new[k] > 0.0:
+                active[k], sign[k] = True, s
+    if locked.any() or active.any():
+        index = np.flatnonzero(free)
+        matrix = M[index][:, index].copy()
+        mwn = _chain_tangent(x, S, np.repeat(v_star - v_new, num).reshape(nv, num).T.copy(), mass, yaw_inertia, com,
+                             joint_in_parent, joint_in_child, gravity_xy)[0]
+        rhs = np.empty((num, index.shape[0]))
+        for d in range(num):
+            rhs[d] = (mwn[d] + M @ dv[d])[index]
+        for r in range(index.shape[0]):
+            k = index[r]
+            if not active[k]:
+                continue
+            unit = np.zeros((num, nv))
+            unit[:, k] = 1.0
+            dA_kk = _chain_tangent(x, S, unit, mass, yaw_inertia, com, joint_in_parent, joint_in_child,
+                                   gravity_xy)[0][:, k]
+            c = LIMIT_BETA ** 2 / (4.0 * np.pi ** 2)
+            rigid = 1.0 / (dt * LIMIT_STIFFNESS * 2.0 * dt)
+            R = max(c / M[k, k], rigid)
+            v_hat = -sign[k] * (x[k] - (lower[k - 3] if sign[k] > 0.0 else upper[k - 3])) / (2.0 * dt)
+            matrix[r, r] += 1.0 / R
+            for d in range(num):
+                dR = -c * dA_kk[d] / M[k, k] ** 2 if c / M[k, k] > rigid else 0.0
+                dv_hat = -sign[k] * S[d, k] / (2.0 * dt)
+                rhs[d, r] += sign[k] * (dv_hat / R - v_hat * dR / R ** 2) + dR / R ** 2 * v_new[k]
+        for d in range(num):
+            solved = spd_solve(matrix, rhs[d])
+            dv[d, :] = 0.0
+            dv[d, index] = solved
+    out = np.empty((num, 2 * nv))
+    out[:, :nv] = S[:, :nv] + dt * dv
+    out[:, nv:] = dv
+    return out

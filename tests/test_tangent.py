@@ -1,0 +1,148 @@
+"""The tangent kernels (engine/tangent.py) against central differences of the kernels they differentiate."""
+
+import numpy as np
+
+from rc1_drake.engine.dynamics import _chain_terms, plant_numbers
+from rc1_drake.engine.tangent import _chain_tangent, _wheel_local_tangent
+from rc1_drake.kinematics import _wheel_kinematics
+
+H = 1e-6
+
+
+def _random(seed, count=4):
+    rng = np.random.default_rng(seed)
+    x = rng.normal(size=32)
+    x[3:16] *= 0.6
+    return x, rng.normal(size=(count, 32)), rng.normal(size=(count, 16))
+
+
+def test_chain_tangent_matches_central_differences():
+    numbers = plant_numbers()
+    jp, jc, *_ = numbers.geometry.arrays
+    mass, inertia, com, gravity = numbers.masses(6, 0.3), numbers.central_yaw_inertia, numbers.com, 0.4 - 0.7j
+    for seed in range(3):
+        x, dx, w = _random(seed)
+        mw, bias, grav = _chain_tangent(x, dx, w, mass, inertia, com, jp, jc, gravity)
+        for d in range(len(dx)):
+            plus = _chain_terms(x + H * dx[d], mass, inertia, com, jp, jc, gravity)
+            minus = _chain_terms(x - H * dx[d], mass, inertia, com, jp, jc, gravity)
+            np.testing.assert_allclose(mw[d], (plus[0] - minus[0]) @ w[d] / (2 * H), atol=1e-7)
+            np.testing.assert_allclose(bias[d], (plus[1] - minus[1]) / (2 * H), atol=1e-6)
+            np.testing.assert_allclose(grav[d], (plus[2] - minus[2]) / (2 * H), atol=1e-7)
+
+
+def _local(x, arrays):
+    _, direction, jacobian = _wheel_kinematics(x, *arrays)
+    return np.conj(direction)[:, None] * jacobian
+
+
+def test_wheel_local_tangent_matches_central_differences():
+    numbers = plant_numbers()
+    jp, jc, module, offset, toe = numbers.geometry.arrays
+    toe = toe * np.exp(1j * 0.03)  # a toed wheel, as the wheel_toe effect makes it
+    for seed in range(3):
+        x, dx, _ = _random(seed)
+        local, dlocal = _wheel_local_tangent(x, dx, jp, jc, module, offset, toe)
+        np.testing.assert_allclose(local, _local(x, (jp, jc, module, offset, toe)), atol=1e-14)
+        for d in range(len(dx)):
+            expected = (_local(x + H * dx[d], (jp, jc, module, offset, toe))
+                        - _local(x - H * dx[d], (jp, jc, module, offset, toe))) / (2 * H)
+            np.testing.assert_allclose(dlocal[d], expected, atol=1e-8)
+
+
+def test_friction_tangent_matches_central_differences_of_the_solve():
+    """dv+ of the implicit friction and servo step along state, parameter and command directions, against
+    central differences of the solve itself (eps = 1 cm/s keeps the law smooth on the difference's scale)."""
+    from rc1_drake.config import Failure, Scenario, Stop
+    from rc1_drake.effects import model_setup
+    from rc1_drake.engine.session import CompiledSession
+    from rc1_drake.engine.tangent import _friction_tangent
+    from rc1_drake import friction as fr
+
+    numbers = plant_numbers()
+    geometry = numbers.geometry
+    jp, jc, *_ = geometry.arrays
+    scenario = Scenario(failures=[Failure(joint=7)], stop=Stop(time_limit_s=0.6))
+    run = CompiledSession().simulate(scenario)
+    setup = model_setup({"lateral_friction_asymmetry": 0.2, "stribeck_ratio": 0.5, "head_drag_mu": 0.3,
+                         "joint_coulomb_Nm": 0.05, "wheel_toe_deg": 1.0})
+    params = fr.friction_parameters(friction=scenario.friction, sgn_smoothing_m_s=0.01, setup=setup, geometry=geometry)
+    params[fr.FAILED][6] = fr.FREE
+    rng = np.random.default_rng(2)
+    command = rng.normal(scale=0.3, size=13)
+    power, gains, dt = numbers.effort_limit, np.array([20.0, 0.2]), 1e-3
+    mass, inertia, com = numbers.masses(), numbers.central_yaw_inertia, numbers.com
+
+    def v_plus(x, p, u):
+        M, bias, _ = _chain_terms(x, mass, inertia, com, jp, jc, 0j)
+        force, servo = fr._friction_step(x, -bias, M, dt, p, 50, u, power, gains, *geometry.arrays)
+        return np.linalg.solve(M, M @ x[16:] + dt * (-bias + force + servo))
+
+    x = run.state[40]
+    keys = [fr.MU_LAT, fr.MU_LONG, fr.C_LAT, fr.C_LONG, fr.C_JOINT, 6, 7, 8, fr.HEAD_MU, fr.JOINT_COULOMB]
+    count = len(keys) + 3
+    dx = np.zeros((count, 32))
+    dparams = np.zeros((count, len(params)))
+    dcommand = np.zeros((count, 13))
+    for d, key in enumerate(keys):
+        dparams[d, key] = 1.0
+    dparams[len(keys), fr.toe_slice(13)] = 1.0  # every wheel's toe
+    dx[len(keys) + 1] = rng.normal(size=32) * np.r_[np.full(16, 0.05), np.full(16, 0.2)]
+    dcommand[len(keys) + 2] = rng.normal(size=13)
+    base = v_plus(x, params, command)
+    M, bias, _ = _chain_terms(x, mass, inertia, com, jp, jc, 0j)
+    mw, dbias, _ = _chain_tangent(x, dx, np.tile(base - x[16:], (count, 1)), mass, inertia, com, jp, jc, 0j)
+    tangent = _friction_tangent(x, dx, dparams, dcommand, -dbias, mw, base, M, -bias, dt, params, command, power, gains,
+                                *geometry.arrays)
+    h = 1e-5
+    for d in range(count):
+        expected = (v_plus(x + h * dx[d], params + h * dparams[d], command + h * dcommand[d])
+                    - v_plus(x - h * dx[d], params - h * dparams[d], command - h * dcommand[d])) / (2 * h)
+        scale = np.abs(expected).max()
+        assert scale > 1e-6, d  # the direction moves the step
+        np.testing.assert_allclose(tangent[d], expected, atol=1e-3 * scale, err_msg=f"direction {d}")
+
+
+def _central(simulate, scenario_at, name, h=1e-6):
+    return (simulate(scenario_at(name, h)).state[-1] - simulate(scenario_at(name, -h)).state[-1]) / (2 * h)
+
+
+def test_run_sensitivities_match_central_differences_of_whole_runs():
+    """d final state / d parameter of a 0.3 s joint-7 run with every effect of the friction law switched on
+    (a falling Stribeck law included), and of a 0.6 s replay of the shipped joint-2 trial (stiff servos beyond
+    the plant's effort clamp, a free joint near the head), against central differences of the runs."""
+    import dataclasses
+
+    from rc1_drake.config import Failure, Scenario, Stop
+    from rc1_drake.engine.session import SENSITIVITY_PARAMETERS, CompiledSession
+    from rc1_drake.measurements import load_trial
+    from rc1_drake.replay import Replayer, replay_scenario
+
+    effects = {"lateral_friction_asymmetry": 0.1, "longitudinal_friction_asymmetry": -0.1, "stribeck_ratio": 0.3,
+               "head_drag_mu": 0.1, "joint_coulomb_Nm": 0.02, "wheel_toe_deg": 0.5}
+    friction_names = ("c_joint", "mu_lat", "mu_long", "c_lat", "c_long")
+
+    def varied(scenario, name, h):
+        if name in friction_names:
+            return dataclasses.replace(scenario, friction=dataclasses.replace(
+                scenario.friction, **{name: getattr(scenario.friction, name) + h}))
+        return dataclasses.replace(scenario, effects={**scenario.effects, name: scenario.effects[name] + h})
+
+    session = CompiledSession()
+    run_scenario = Scenario(failures=[Failure(joint=7)], stop=Stop(time_limit_s=0.3), effects=effects)
+    trial = load_trial("data/paper_campaign/j2_1.json")
+    keep = trial.t - trial.t[0] <= 0.6
+    trial = dataclasses.replace(trial, t=trial.t[keep], q=trial.q[keep], head_yaw_rate=trial.head_yaw_rate[keep],
+                                camera=trial.camera[keep])
+    replayer = Replayer(trial, engine="compiled")
+    replay = replay_scenario(trial, run_scenario.friction, effects, replayer.numerics)
+    cases = [(lambda s, **kw: session.simulate(s, **kw), run_scenario),
+             (lambda s, **kw: replayer.session.simulate(s, initial=replayer.initial, **kw), replay)]
+    for simulate, scenario in cases:
+        exact = simulate(scenario, sensitivities=SENSITIVITY_PARAMETERS)
+        assert exact.sensitivity.shape == (len(exact.t), len(SENSITIVITY_PARAMETERS), 32)
+        for p, name in enumerate(SENSITIVITY_PARAMETERS):
+            expected = _central(simulate, lambda n, h: varied(scenario, n, h), name)
+            scale = np.abs(expected).max()
+            assert scale > 1e-3, name
+            np.testing.assert_allclose(exact.sensitivity[-1, p], expected, atol=1e-4 * scale, err_msg=name)
