@@ -18,7 +18,7 @@
 5. diagnosis: `rc1 diagnose` (every candidate effect) on the shipped 21-trial campaign.
 
 Each section prints as it finishes; the table at the end gives every figure with its target.
-`--readme` writes that table into README.md between its speed-table markers.
+`--readme` writes that table into README.md between its speed-table markers (a re-run section replaces its rows).
 """
 
 import argparse
@@ -205,14 +205,19 @@ BEGIN, END = "<!-- speed-table: written by benchmarks/speed.py --readme -->", "<
 
 
 def write_readme_table(rows, machine) -> None:
-    """Replace the README's speed table (between BEGIN and END) by this run's figures."""
+    """Write this run's figures into the README's speed table (between BEGIN and END): a figure measured again
+    replaces its row, the others stay (so one section can be re-run alone), new ones are appended."""
     readme = REPO_ROOT / "README.md"
     text = readme.read_text()
     if BEGIN not in text or END not in text:
         raise SystemExit(f"{readme}: no speed-table markers ({BEGIN} ... {END})")
-    lines = [BEGIN, f"Measured {time.strftime('%Y-%m-%d')} on {machine} by `python benchmarks/speed.py --readme`:", "",
-             "| figure | measured | target | met |", "|---|---|---|---|"]
-    lines += [f"| {n} | {v:.3g} | {t} | {'' if m is None else ('yes' if m else 'no')} |" for n, v, t, m in rows]
+    fresh = {n: f"| {n} | {v:.3g} | {t} | {'' if m is None else ('yes' if m else 'no')} |" for n, v, t, m in rows}
+    old = text[text.index(BEGIN):text.index(END)].splitlines()
+    kept = [line for line in old if line.startswith("| ") and not line.startswith("| figure")]
+    table = [fresh.pop(line.split(" | ")[0][2:], line) for line in kept] + list(fresh.values())
+    lines = [BEGIN, f"Measured on {machine} by `python benchmarks/speed.py --readme` (last run "
+             f"{time.strftime('%Y-%m-%d')}):", "", "| figure | measured | target | met |", "|---|---|---|---|"]
+    lines += table
     table = "\n".join(lines + [END])
     readme.write_text(re.sub(re.escape(BEGIN) + ".*?" + re.escape(END), lambda _: table, text, flags=re.S))
 

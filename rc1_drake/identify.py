@@ -320,6 +320,25 @@ def _replay_residual(trial, friction: Friction, effects=None) -> np.ndarray:
     return trial_residual(trial, _replay(trial, friction, effects))
 
 
+def _replay_residual_and_jacobian(trial, friction: Friction, effects, names) -> tuple:
+    """One trial's residuals and their derivatives by the parameters `names` from one replay with exact
+    sensitivities (engine/tangent.py). The residuals are linear in the logged states (interpolated head
+    positions, yaw rates), so shifting the states by one sensitivity column gives its residual column exactly."""
+    run = _replayer(trial).run(friction, effects, sensitivities=names)
+    r = trial_residual(trial, run)
+    columns = [trial_residual(trial, dataclasses.replace(run, state=run.state + run.sensitivity[:, p])) - r
+               for p in range(len(names))]
+    return r, np.column_stack(columns) if columns else np.zeros((len(r), 0))
+
+
+def exact_jacobian_available(names) -> bool:
+    """Whether replays can give the residuals' derivatives by `names` exactly (the compiled engine's
+    sensitivities), in place of finite-difference columns."""
+    from .engine.session import SENSITIVITY_PARAMETERS
+
+    return default_engine() == "compiled" and all(n in SENSITIVITY_PARAMETERS for n in names)
+
+
 def _input_noise_covariance(trial, friction: Friction, effects, samples: int, seed: int, length=None) -> np.ndarray:
     """Covariance of one trial's residuals over `samples` replays with resampled angle noise; `length`:
     that of the unperturbed replay's residuals, when the caller has it (else it is replayed)."""
@@ -347,6 +366,18 @@ class CampaignResiduals:
         self.simulations += len(self.trials)
         self.channels = np.concatenate([residual_channels(p) for p in parts])
         return np.concatenate(parts)
+
+    def with_jacobian(self, friction: Friction, effects, names) -> tuple:
+        """(the stacked residuals, their derivatives by the parameters `names`) from one replay per trial
+        (exact_jacobian_available(names) must hold)."""
+        jobs = [(t, friction, _with_fixed(self.effects, effects), tuple(names)) for t in self.trials]
+        if self.executor is None:
+            parts = [_replay_residual_and_jacobian(*job) for job in jobs]
+        else:
+            parts = [f.result() for f in [self.executor.submit(_replay_residual_and_jacobian, *job) for job in jobs]]
+        self.simulations += len(self.trials)
+        self.channels = np.concatenate([residual_channels(r) for r, _ in parts])
+        return np.concatenate([r for r, _ in parts]), np.vstack([j for _, j in parts])
 
     def input_noise(self, friction: Friction, effects=None, *, samples: int = INPUT_NOISE_SAMPLES,
                     seed: int = 0) -> np.ndarray:
@@ -499,8 +530,9 @@ def fit_program(residuals, *, start: Friction, parameters=None, log_step: float 
     """Least squares of the standardized residuals (final position, yaw rate, camera path) over the log
     of each free friction coefficient and the value of each free effect parameter (scaled by its range),
     within bounds: Levenberg-Marquardt iterations whose bounded steps are Drake MathematicalPrograms
-    solved by SNOPT. The simulation is not differentiable, so the Jacobian comes from forward differences
-    (one residual evaluation per free parameter per iteration). `on_iteration(friction, simulations)`,
+    solved by SNOPT. The Jacobian is exact where the compiled engine differentiates the replays (one
+    replay per trial per iteration, engine/tangent.py), else forward differences (one residual evaluation
+    per free parameter per iteration). `on_iteration(friction, simulations)`,
     if given, is called after every accepted step."""
     free = [p for p in (parameters or DEFAULT_PARAMETERS) if not p.frozen]
     start_effects = dict(start_effects or {})
@@ -521,6 +553,18 @@ def fit_program(residuals, *, start: Friction, parameters=None, log_step: float 
     def friction_at(u):
         return model_at(u)[0]
 
+    names = [p.name for p in free]
+    exact = hasattr(residuals, "with_jacobian") and bool(free) and exact_jacobian_available(names)
+
+    def jacobian_at(u, r):
+        """d r / d u: exact from the replays' sensitivities (chain rule through the log or linear scaling),
+        else forward differences of log_step."""
+        if not exact:
+            return np.column_stack([(residuals(*model_at(u + log_step * e)) - r) / log_step for e in np.eye(len(u))])
+        _, by_value = residuals.with_jacobian(*model_at(u), names)
+        scale = np.array([b * math.exp(x) if p.is_friction else s for p, b, s, x in zip(free, base, span, u, strict=True)])
+        return by_value * scale
+
     u = np.zeros(len(free))
     r = residuals(*model_at(u))
     cost_start = cost = 0.5 * float(r @ r)
@@ -531,7 +575,7 @@ def fit_program(residuals, *, start: Friction, parameters=None, log_step: float 
     jac = None
     for k in range(1, max_iterations + 1):
         iterations = k
-        jac = np.column_stack([(residuals(*model_at(u + log_step * e)) - r) / log_step for e in np.eye(len(u))])
+        jac = jacobian_at(u, r)
         while True:
             step = _bounded_step(jac, r, damping, lower - u, upper - u)
             r_new = residuals(*model_at(u + step))

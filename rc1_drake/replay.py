@@ -97,8 +97,11 @@ class Replayer:
         self.session = make_session(base, engine=engine, joint_reference=self.reference)
         self.initial = replay_initial_state(trial, self.reference, self.session.geometry)
 
-    def run(self, friction: Friction, effects=None) -> Run:
+    def run(self, friction: Friction, effects=None, *, sensitivities=()) -> Run:
+        """The replay; with `sensitivities` (names, compiled engine) also d state / d parameter (Run.sensitivity)."""
         scenario = replay_scenario(self.trial, friction, effects, self.numerics)
+        if sensitivities:
+            return self.session.simulate(scenario, initial=self.initial, sensitivities=sensitivities)
         return self.session.simulate(scenario, initial=self.initial)
 
     def angle_noise_rad(self) -> float:

@@ -222,3 +222,28 @@ def test_input_noise_widens_the_intervals_to_cover_the_scatter(tmp_path):
     assert abs(toe - 1.0) > 3 * se_out  # the output-noise interval misses the truth ...
     assert abs(toe - 1.0) <= Z95 * se_in and se_in > 2 * se_out  # ... the one with the input noise covers it
     assert wide.simulations == narrow.simulations + 9
+
+
+def test_exact_residual_jacobian_matches_finite_differences(campaign):
+    """The program fit's Jacobian from the replays' exact sensitivities (one replay per trial) against central
+    differences of the residuals (two replays per parameter), friction and effect parameters alike."""
+    from rc1_drake.identify import CampaignResiduals, exact_jacobian_available
+
+    names = ["mu_lat", "c_long", "wheel_toe_deg", "lateral_friction_asymmetry"]
+    assert exact_jacobian_available(names)
+    residuals = CampaignResiduals(campaign.trials)
+    effects = {"wheel_toe_deg": 0.5, "lateral_friction_asymmetry": 0.1}
+    r, jacobian = residuals.with_jacobian(Friction(), effects, names)
+    assert residuals.simulations == len(campaign.trials)
+    np.testing.assert_allclose(r, residuals(Friction(), effects), atol=1e-9)
+    for p, name in enumerate(names):
+        h = 1e-6
+
+        def at(sign):
+            if name in FRICTION_NAMES:
+                return residuals(dataclasses.replace(Friction(), **{name: getattr(Friction(), name) + sign * h}), effects)
+            return residuals(Friction(), {**effects, name: effects[name] + sign * h})
+
+        expected = (at(1) - at(-1)) / (2 * h)
+        assert np.abs(expected).max() > 1e-2, name
+        np.testing.assert_allclose(jacobian[:, p], expected, atol=1e-4 * np.abs(expected).max(), err_msg=name)
