@@ -53,7 +53,7 @@ PAPER_SHAPE = np.array([0.0, 0.0, 0.0, 0.01])
 
 
 @jit
-def _coulomb1(u, mu_n, eps, asymmetry, ratio, speed, clip=True):
+def coulomb_law(u, mu_n, eps, asymmetry, ratio, speed, clip=True):
     """The Coulomb term mu N (1 + a sgn(u)) (1 + r exp(-(u/v_s)^2)) sgn(u) of one slip speed u, and the secant
     and tangent rates of the whole friction law f(u) = -(c u + that): f = -secant u, df/du = -tangent (before
     adding c).
@@ -74,10 +74,10 @@ def _coulomb1(u, mu_n, eps, asymmetry, ratio, speed, clip=True):
 
 @jit
 def _coulomb(u, mu_n, eps, asymmetry, ratio, speed):
-    """_coulomb1 over arrays u and mu_n: (force, secant, tangent) arrays."""
+    """coulomb_law over arrays u and mu_n: (force, secant, tangent) arrays."""
     force, secant, tangent = np.empty(u.shape[0]), np.empty(u.shape[0]), np.empty(u.shape[0])
     for i in range(u.shape[0]):
-        force[i], secant[i], tangent[i] = _coulomb1(u[i], mu_n[i], eps, asymmetry, ratio, speed)
+        force[i], secant[i], tangent[i] = coulomb_law(u[i], mu_n[i], eps, asymmetry, ratio, speed)
     return force, secant, tangent
 
 
@@ -176,7 +176,7 @@ def _servo_torque(offset, rate, power, v_next):
 
 
 @jit
-def _span(jac_long, jac_lat, w):
+def jacobian_span(jac_long, jac_lat, w):
     """How many leading coordinates move wheel w (its Jacobian rows are zero beyond them)."""
     span = jac_long.shape[1]
     while span > 0 and jac_long[w, span - 1] == 0.0 and jac_lat[w, span - 1] == 0.0:
@@ -185,12 +185,12 @@ def _span(jac_long, jac_lat, w):
 
 
 @jit
-def _assemble(v_next, tangent, jac_long, jac_lat, spans, mass_damped, dt, mu_long, mu_lat, c_long, c_lat,
+def assemble_step(v_next, tangent, jac_long, jac_lat, spans, mass_damped, dt, mu_long, mu_lat, c_long, c_lat,
               normal_force, eps, shape, jac_head, head_coulomb, joint_coulomb, joint_eps, servo_offset, servo_rate,
               servo_power, exact=False):
     """The step's generalized force f(v+) (wheels, head, joint Coulomb, servos; Eqs. 4-5) and the matrix
     mass_damped + dt * (rate of -f): its tangent (Newton) if `tangent`, else its secant (the start, which
-    linearizes each Coulomb term through the origin); `exact`: the tangent unclipped (_coulomb1). Also returns
+    linearizes each Coulomb term through the origin); `exact`: the tangent unclipped (coulomb_law). Also returns
     which servos are not saturated."""
     n = v_next.shape[0]
     force = np.zeros(n)
@@ -201,8 +201,8 @@ def _assemble(v_next, tangent, jac_long, jac_lat, spans, mass_damped, dt, mu_lon
         for a in range(span):
             u_long += jac_long[w, a] * v_next[a]
             u_lat += jac_lat[w, a] * v_next[a]
-        c_l, s_l, t_l = _coulomb1(u_long, mu_long * normal_force[w], eps, shape[1], 0.0, shape[3], not exact)
-        c_t, s_t, t_t = _coulomb1(u_lat, mu_lat * normal_force[w], eps, shape[0], shape[2], shape[3], not exact)
+        c_l, s_l, t_l = coulomb_law(u_long, mu_long * normal_force[w], eps, shape[1], 0.0, shape[3], not exact)
+        c_t, s_t, t_t = coulomb_law(u_lat, mu_lat * normal_force[w], eps, shape[0], shape[2], shape[3], not exact)
         f_long, f_lat = -(c_long * u_long + c_l), -(c_lat * u_lat + c_t)
         d_long = dt * (c_long + (t_l if tangent else s_l))
         d_lat = dt * (c_lat + (t_t if tangent else s_t))
@@ -214,7 +214,7 @@ def _assemble(v_next, tangent, jac_long, jac_lat, spans, mass_damped, dt, mu_lon
     linear = np.zeros(n)
     for a in range(n):
         if joint_coulomb[a] > 0.0:
-            f_j, s_j, t_j = _coulomb1(v_next[a], joint_coulomb[a], joint_eps, 0.0, 0.0, 1.0)
+            f_j, s_j, t_j = coulomb_law(v_next[a], joint_coulomb[a], joint_eps, 0.0, 0.0, 1.0)
             force[a] -= f_j
             matrix[a, a] += dt * (t_j if tangent else s_j)
         raw = servo_offset[a] - servo_rate[a] * v_next[a]
@@ -237,7 +237,7 @@ def _step_residual(v_next, jac_long, jac_lat, spans, mass_damped, momentum_free,
                    normal_force, eps, shape, jac_head, head_coulomb, joint_coulomb, joint_eps, servo_offset,
                    servo_rate, servo_power):
     """The backward-Euler step's residual M v+ - p_free - dt f(v+) (with c_joint in M) and its Jacobian."""
-    force, matrix, _ = _assemble(v_next, True, jac_long, jac_lat, spans, mass_damped, dt, mu_long, mu_lat, c_long,
+    force, matrix, _ = assemble_step(v_next, True, jac_long, jac_lat, spans, mass_damped, dt, mu_long, mu_lat, c_long,
                                  c_lat, normal_force, eps, shape, jac_head, head_coulomb, joint_coulomb, joint_eps,
                                  servo_offset, servo_rate, servo_power)
     return mass_damped @ v_next - momentum_free - dt * force, matrix
@@ -252,12 +252,12 @@ def _implicit_friction_force(jac_long, jac_lat, joint_damping, mass_matrix, mome
                              c_long, c_lat, normal_force, eps, newton_steps, shape, jac_head, head_coulomb,
                              joint_coulomb, joint_eps, servo_offset, servo_rate, servo_power):
     mass_damped = mass_matrix + dt * np.diag(joint_damping)
-    spans = np.array([_span(jac_long, jac_lat, w) for w in range(jac_long.shape[0])])
+    spans = np.array([jacobian_span(jac_long, jac_lat, w) for w in range(jac_long.shape[0])])
     args = (jac_long, jac_lat, spans, mass_damped, dt, mu_long, mu_lat, c_long, c_lat, normal_force, eps, shape,
             jac_head, head_coulomb, joint_coulomb, joint_eps, servo_offset, servo_rate, servo_power)
     # The secant start: each Coulomb term through the origin at its rate at v; the servos as they stand at
     # v, linear where not saturated, a constant torque where saturated.
-    force, matrix, linear = _assemble(v, False, *args)
+    force, matrix, linear = assemble_step(v, False, *args)
     servo = np.minimum(np.maximum(servo_offset - servo_rate * v, -servo_power), servo_power)
     v_next = spd_solve(matrix, momentum_free + dt * (linear * servo_offset + (1.0 - linear) * servo))
     # Newton steps from that secant start, each backtracked until the residual's norm falls (Armijo): a plain
@@ -365,7 +365,7 @@ def toe_slice(num_wheels: int) -> slice:
 
 
 @jit
-def _friction_problem(x, other_force, mass_matrix, dt, params, servo_command, servo_power, servo_gains,
+def friction_problem(x, other_force, mass_matrix, dt, params, servo_command, servo_power, servo_gains,
                       joint_in_parent, joint_in_child, wheel_module, wheel_offset, wheel_toe):
     """The implicit step's data at state x: wheel Jacobians along and across the wheels, joint damping,
     the free momentum, the friction-law terms and the servos' backward-Euler offset, rate and power."""
@@ -399,10 +399,10 @@ def _friction_problem(x, other_force, mass_matrix, dt, params, servo_command, se
 
 
 @jit
-def _friction_step(x, other_force, mass_matrix, dt, params, newton_steps, servo_command, servo_power, servo_gains,
+def friction_step(x, other_force, mass_matrix, dt, params, newton_steps, servo_command, servo_power, servo_gains,
                    joint_in_parent, joint_in_child, wheel_module, wheel_offset, wheel_toe):
     (jac_long, jac_lat, joint_damping, momentum_free, normal, jac_head, head_coulomb, joint_coulomb, servo_offset,
-     servo_rate, power, _) = _friction_problem(x, other_force, mass_matrix, dt, params, servo_command, servo_power,
+     servo_rate, power, _) = friction_problem(x, other_force, mass_matrix, dt, params, servo_command, servo_power,
                                                servo_gains, joint_in_parent, joint_in_child, wheel_module,
                                                wheel_offset, wheel_toe)
     return _implicit_friction_force(jac_long, jac_lat, joint_damping, mass_matrix, momentum_free, x[x.shape[0] // 2:],
@@ -497,7 +497,7 @@ class FrictionForces(LeafSystem):
             other += plant.CalcGravityGeneralizedForces(plant_context)
         # The plant applies gravity and the bias term itself; the extra forces only reach it through this output.
         extra = sum((force(x) for force in self.extra_forces), np.zeros(len(other))) if self.extra_forces else 0.0
-        friction, servo = _friction_step(x, other + extra, plant.CalcMassMatrix(plant_context), self._dt, params,
+        friction, servo = friction_step(x, other + extra, plant.CalcMassMatrix(plant_context), self._dt, params,
                                          self.NEWTON_STEPS, command_port.Eval(context), power_port.Eval(context),
                                          self._servo_gains, *self._geometry)
         step = value.get_mutable_value()

@@ -16,7 +16,7 @@ from pydrake.systems.framework import DiagramBuilder
 from rc1_drake.config import Failure, Gait, HeadingControl, Scenario, Stop
 from rc1_drake.effects import LIBRARY, model_setup
 from rc1_drake.engine import make_session
-from rc1_drake.engine.dynamics import _chain_terms, plant_numbers
+from rc1_drake.engine.dynamics import chain_terms, plant_numbers
 from rc1_drake.engine.session import CompiledSession
 from rc1_drake.measurements import load_trial
 from rc1_drake.model import add_rc1_plant, set_payload
@@ -56,7 +56,7 @@ def test_chain_terms_match_the_plant_on_random_states():
         plant.mutable_gravity_field().set_gravity_vector(gravity)
         set_payload(plant, context, payload_module, 0.4)
         plant.SetPositionsAndVelocities(context, x)
-        M, bias, g = _chain_terms(x, numbers.masses(payload_module, 0.4), numbers.central_yaw_inertia, numbers.com,
+        M, bias, g = chain_terms(x, numbers.masses(payload_module, 0.4), numbers.central_yaw_inertia, numbers.com,
                                   jp, jc, complex(gravity[0], gravity[1]))
         np.testing.assert_allclose(M, plant.CalcMassMatrix(context), atol=1e-12)
         np.testing.assert_allclose(bias, plant.CalcBiasTerm(context), atol=1e-11)

@@ -2,8 +2,8 @@
 
 import numpy as np
 
-from rc1_drake.engine.dynamics import _chain_terms, plant_numbers
-from rc1_drake.engine.tangent import _chain_tangent, _wheel_local_tangent
+from rc1_drake.engine.dynamics import chain_terms, plant_numbers
+from rc1_drake.engine.tangent import chain_tangent, wheel_local_tangent
 from rc1_drake.kinematics import _wheel_kinematics
 
 H = 1e-6
@@ -22,10 +22,10 @@ def test_chain_tangent_matches_central_differences():
     mass, inertia, com, gravity = numbers.masses(6, 0.3), numbers.central_yaw_inertia, numbers.com, 0.4 - 0.7j
     for seed in range(3):
         x, dx, w = _random(seed)
-        mw, bias, grav = _chain_tangent(x, dx, w, mass, inertia, com, jp, jc, gravity)
+        mw, bias, grav = chain_tangent(x, dx, w, mass, inertia, com, jp, jc, gravity)
         for d in range(len(dx)):
-            plus = _chain_terms(x + H * dx[d], mass, inertia, com, jp, jc, gravity)
-            minus = _chain_terms(x - H * dx[d], mass, inertia, com, jp, jc, gravity)
+            plus = chain_terms(x + H * dx[d], mass, inertia, com, jp, jc, gravity)
+            minus = chain_terms(x - H * dx[d], mass, inertia, com, jp, jc, gravity)
             np.testing.assert_allclose(mw[d], (plus[0] - minus[0]) @ w[d] / (2 * H), atol=1e-7)
             np.testing.assert_allclose(bias[d], (plus[1] - minus[1]) / (2 * H), atol=1e-6)
             np.testing.assert_allclose(grav[d], (plus[2] - minus[2]) / (2 * H), atol=1e-7)
@@ -42,7 +42,7 @@ def test_wheel_local_tangent_matches_central_differences():
     toe = toe * np.exp(1j * 0.03)  # a toed wheel, as the wheel_toe effect makes it
     for seed in range(3):
         x, dx, _ = _random(seed)
-        local, dlocal = _wheel_local_tangent(x, dx, jp, jc, module, offset, toe)
+        local, dlocal = wheel_local_tangent(x, dx, jp, jc, module, offset, toe)
         np.testing.assert_allclose(local, _local(x, (jp, jc, module, offset, toe)), atol=1e-14)
         for d in range(len(dx)):
             expected = (_local(x + H * dx[d], (jp, jc, module, offset, toe))
@@ -56,7 +56,7 @@ def test_friction_tangent_matches_central_differences_of_the_solve():
     from rc1_drake.config import Failure, Scenario, Stop
     from rc1_drake.effects import model_setup
     from rc1_drake.engine.session import CompiledSession
-    from rc1_drake.engine.tangent import _friction_tangent
+    from rc1_drake.engine.tangent import friction_tangent
     from rc1_drake import friction as fr
 
     numbers = plant_numbers()
@@ -74,8 +74,8 @@ def test_friction_tangent_matches_central_differences_of_the_solve():
     mass, inertia, com = numbers.masses(), numbers.central_yaw_inertia, numbers.com
 
     def v_plus(x, p, u):
-        M, bias, _ = _chain_terms(x, mass, inertia, com, jp, jc, 0j)
-        force, servo = fr._friction_step(x, -bias, M, dt, p, 50, u, power, gains, *geometry.arrays)
+        M, bias, _ = chain_terms(x, mass, inertia, com, jp, jc, 0j)
+        force, servo = fr.friction_step(x, -bias, M, dt, p, 50, u, power, gains, *geometry.arrays)
         return np.linalg.solve(M, M @ x[16:] + dt * (-bias + force + servo))
 
     x = run.state[40]
@@ -90,9 +90,9 @@ def test_friction_tangent_matches_central_differences_of_the_solve():
     dx[len(keys) + 1] = rng.normal(size=32) * np.r_[np.full(16, 0.05), np.full(16, 0.2)]
     dcommand[len(keys) + 2] = rng.normal(size=13)
     base = v_plus(x, params, command)
-    M, bias, _ = _chain_terms(x, mass, inertia, com, jp, jc, 0j)
-    mw, dbias, _ = _chain_tangent(x, dx, np.tile(base - x[16:], (count, 1)), mass, inertia, com, jp, jc, 0j)
-    tangent = _friction_tangent(x, dx, dparams, dcommand, -dbias, mw, base, M, -bias, dt, params, command, power, gains,
+    M, bias, _ = chain_terms(x, mass, inertia, com, jp, jc, 0j)
+    mw, dbias, _ = chain_tangent(x, dx, np.tile(base - x[16:], (count, 1)), mass, inertia, com, jp, jc, 0j)
+    tangent = friction_tangent(x, dx, dparams, dcommand, -dbias, mw, base, M, -bias, dt, params, command, power, gains,
                                 *geometry.arrays)
     h = 1e-5
     for d in range(count):

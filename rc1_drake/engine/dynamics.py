@@ -64,7 +64,7 @@ def plant_numbers() -> PlantNumbers:
 
 
 @jit
-def _chain_terms(x, mass, yaw_inertia, com, joint_in_parent, joint_in_child, gravity_xy):
+def chain_terms(x, mass, yaw_inertia, com, joint_in_parent, joint_in_child, gravity_xy):
     """(M, C v, g) of the planar chain at state x (module docstring)."""
     nj = joint_in_parent.shape[0]
     nm = nj + 1

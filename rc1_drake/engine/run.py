@@ -21,9 +21,9 @@ import numpy as np
 
 from ..friction import spd_solve
 from ..kinematics import jit
-from .dynamics import _chain_terms
-from .step import _plant_step
-from .tangent import _step_tangent
+from .dynamics import chain_terms
+from .step import plant_step
+from .tangent import step_tangent
 
 RUNNING, CROSSED, CIRCLING, NOT_FINITE = 0, 1, 2, 3
 SERPENOID, REFERENCE = 0, 1
@@ -84,11 +84,11 @@ def _heading_gain(x, heading, z_heading):
 def _sensitivity_step(x, x_next, v_star, force_plus, command, sens, sens_z, sens_zh, dparams, z_heading, dt, params,
                       power, servo_gains, gains, heading, mass, yaw_inertia, com, gravity_xy, in_plane, effort, lower,
                       upper, locked, joint_in_parent, joint_in_child, wheel_module, wheel_offset, wheel_toe):
-    """Carry the sensitivities through one step (tangent._step_tangent), the PID's command and integrators, and
+    """Carry the sensitivities through one step (tangent.step_tangent), the PID's command and integrators, and
     the heading controller (the serpenoid's and the replay reference's time terms do not depend on parameters)."""
     nq = x.shape[0] // 2
     num = sens.shape[0]
-    M = _chain_terms(x, mass, yaw_inertia, com, joint_in_parent, joint_in_child, gravity_xy)[0]
+    M = chain_terms(x, mass, yaw_inertia, com, joint_in_parent, joint_in_child, gravity_xy)[0]
     v_plus = x[nq:] + dt * spd_solve(M, force_plus)
     weights = heading[5:]
     kp_h, ki_h = _heading_gain(x, heading, z_heading)
@@ -96,7 +96,7 @@ def _sensitivity_step(x, x_next, v_star, force_plus, command, sens, sens_z, sens
     for d in range(num):
         dtheta = kp_h * (weights @ sens[d, :nq]) + ki_h * sens_zh[d] if weights.shape[0] else 0.0
         dcommand[d] = gains[1] * sens_z[d] + gains[0] * (dtheta - sens[d, 3:nq]) - gains[2] * sens[d, nq + 3:]
-    new = _step_tangent(x, v_plus, v_star, x_next[nq:], sens, dparams, dcommand, dt, params, command, power,
+    new = step_tangent(x, v_plus, v_star, x_next[nq:], sens, dparams, dcommand, dt, params, command, power,
                         servo_gains, mass, yaw_inertia, com, gravity_xy, in_plane, effort, lower, upper, locked,
                         joint_in_parent, joint_in_child, wheel_module, wheel_offset, wheel_toe)
     kp_n, ki_n = _heading_gain(x_next, heading, z_heading)
@@ -108,7 +108,7 @@ def _sensitivity_step(x, x_next, v_star, force_plus, command, sens, sens_z, sens
 
 
 @jit
-def _advance(x, z_pid, z_heading, segment, k0, k1, t_first, dt, extra_force, params, power, locked,
+def advance_run(x, z_pid, z_heading, segment, k0, k1, t_first, dt, extra_force, params, power, locked,
              log_steps, log_times, log_next, last_torque, log_state, log_torque, source, gait, heading, breaks, values,
              rates, gains, stop, model, mass, yaw_inertia, com, effort, lower, upper, joint_in_parent,
              joint_in_child, wheel_module, wheel_offset, wheel_toe, sens, sens_z, sens_zh, dparams, log_sens):
@@ -131,7 +131,7 @@ def _advance(x, z_pid, z_heading, segment, k0, k1, t_first, dt, extra_force, par
         theta, theta_dot, error = _command(t, x, source, gait, heading, z_heading, breaks, values, rates, segment)
         e_pos = theta - x[3:nq]
         command = gains[1] * z_pid + gains[0] * e_pos + gains[2] * (theta_dot - x[nq + 3:])
-        x_next, torque, v_star, force_plus = _plant_step(x, dt, params, command, power, servo_gains, extra_force,
+        x_next, torque, v_star, force_plus = plant_step(x, dt, params, command, power, servo_gains, extra_force,
                                                          mass, yaw_inertia, com, gravity_xy, in_plane, effort, lower,
                                                          upper, locked, joint_in_parent, joint_in_child, wheel_module,
                                                          wheel_offset, wheel_toe)
@@ -145,7 +145,7 @@ def _advance(x, z_pid, z_heading, segment, k0, k1, t_first, dt, extra_force, par
                 theta, theta_dot, _ = _command(log_times[row], x, source, gait, heading, z_heading, breaks, values,
                                                rates, segment)
                 between = gains[1] * z_pid + gains[0] * (theta - x[3:nq]) + gains[2] * (theta_dot - x[nq + 3:])
-                log_torque[row] = _plant_step(x, dt, params, between, power, servo_gains, extra_force, mass,
+                log_torque[row] = plant_step(x, dt, params, between, power, servo_gains, extra_force, mass,
                                               yaw_inertia, com, gravity_xy, in_plane, effort, lower, upper, locked,
                                               joint_in_parent, joint_in_child, wheel_module, wheel_offset,
                                               wheel_toe)[1]

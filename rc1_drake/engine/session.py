@@ -19,7 +19,7 @@ from ..friction import FAILED, FREE, LOCKED, friction_parameters
 from ..gait import serpenoid_parameters
 from ..protocol import Run, initial_state
 from .dynamics import plant_numbers
-from .run import CIRCLING, CROSSED, NOT_FINITE, REFERENCE, SERPENOID, _advance
+from .run import CIRCLING, CROSSED, NOT_FINITE, REFERENCE, SERPENOID, advance_run
 
 _REASON = {CROSSED: "crossed", CIRCLING: "circling"}
 _WARNED = set()
@@ -174,7 +174,7 @@ class CompiledSession:
 
 
 class _CompiledRun:
-    """One run's arrays for run._advance: the carried state (changed in place), the logs, the constants."""
+    """One run's arrays for run.advance_run: the carried state (changed in place), the logs, the constants."""
 
     def __init__(self, session: CompiledSession, scenario: Scenario, setup, x, names=()):
         numbers = session.numbers
@@ -214,9 +214,9 @@ class _CompiledRun:
                          *numbers.geometry.arrays)
 
     def advance(self, k0: int, k1: int, t_first: float = np.nan, *, carried=None) -> tuple:
-        """Updates k0 <= k < k1 (run._advance) on the carried state, or on `carried` (a copy) if given."""
+        """Updates k0 <= k < k1 (run.advance_run) on the carried state, or on `carried` (a copy) if given."""
         x, z, zh, seg, params, power, locked, log_next, last, sens, sens_z, sens_zh = carried or self._carried()
-        return _advance(x, z, zh, seg, k0, k1, t_first, self.dt, np.zeros(16), params, power, locked, self.log_steps,
+        return advance_run(x, z, zh, seg, k0, k1, t_first, self.dt, np.zeros(16), params, power, locked, self.log_steps,
                         self.log_t, log_next, last, *self.constant, sens, sens_z, sens_zh, self.dparams, self.log_sens)
 
     def _carried(self) -> list:

@@ -20,9 +20,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..friction import FrictionForces, _friction_step, spd_solve
+from ..friction import FrictionForces, friction_step, spd_solve
 from ..kinematics import jit
-from .dynamics import _chain_terms
+from .dynamics import chain_terms
 
 NEWTON_STEPS = FrictionForces.NEWTON_STEPS
 LIMIT_BETA = 0.1
@@ -94,17 +94,17 @@ def _limit_solve(q, v, v_star, A, dt, lower, upper, locked):
 
 
 @jit
-def _plant_step(x, dt, params, servo_command, servo_power, servo_gains, extra_force, mass, yaw_inertia, com,
+def plant_step(x, dt, params, servo_command, servo_power, servo_gains, extra_force, mass, yaw_inertia, com,
                 gravity_xy, gravity_in_plane, effort, lower, upper, locked, joint_in_parent, joint_in_child,
                 wheel_module, wheel_offset, wheel_toe):
     """(x+, servo torque (13,), v*, the force that gives the friction solve's v+ = v + dt M^-1 force) of one
     Diagram step from state x (module docstring)."""
     nv = x.shape[0] // 2
-    M, bias, gravity = _chain_terms(x, mass, yaw_inertia, com, joint_in_parent, joint_in_child, gravity_xy)
+    M, bias, gravity = chain_terms(x, mass, yaw_inertia, com, joint_in_parent, joint_in_child, gravity_xy)
     other = -bias
     if gravity_in_plane:
         other = other + gravity
-    friction, servo = _friction_step(x, other + extra_force, M, dt, params, NEWTON_STEPS, servo_command, servo_power,
+    friction, servo = friction_step(x, other + extra_force, M, dt, params, NEWTON_STEPS, servo_command, servo_power,
                                      servo_gains, joint_in_parent, joint_in_child, wheel_module, wheel_offset,
                                      wheel_toe)
     tau = -bias + gravity + friction + extra_force  # the plant applies its gravity field itself

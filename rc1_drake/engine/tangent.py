@@ -8,7 +8,7 @@ theorem (its Newton matrix, exact), the plant's effort clamp, locked joints and 
 Differentiating the chain recursion of kinematics.py: with delta_phi_k = delta_yaw + sum_{j<k} delta_q_j,
 e_k = exp(i phi_k) moves by i delta_phi_k e_k, so a point r fixed in module k moves by i delta_phi_k R(phi_k) r,
 and the Jacobian column i (c - c_j) of a point c about a joint c_j moves by i (delta_c - delta_c_j). Each
-term below is the exact derivative of its counterpart in dynamics._chain_terms / friction._friction_step;
+term below is the exact derivative of its counterpart in dynamics.chain_terms / friction.friction_step;
 tests/test_tangent.py checks them against central differences.
 """
 
@@ -17,17 +17,17 @@ from __future__ import annotations
 import numpy as np
 
 from ..friction import (C_JOINT, C_LAT, C_LONG, EPS, FAILED, FREE, HEAD_MU, HEAD_NORMAL, JOINT_COULOMB,
-                        JOINT_EPS_RAD_S, MU_LAT, MU_LONG, PER_WHEEL, SHAPE, _assemble, _coulomb1, _friction_problem,
-                        _span, cholesky, cholesky_solve, spd_solve)
+                        JOINT_EPS_RAD_S, MU_LAT, MU_LONG, PER_WHEEL, SHAPE, assemble_step, coulomb_law, friction_problem,
+                        jacobian_span, cholesky, cholesky_solve, spd_solve)
 from ..kinematics import jit
-from .dynamics import _chain_terms
+from .dynamics import chain_terms
 from .step import LIMIT_BETA, LIMIT_STIFFNESS, LIMIT_WINDOW
 
 
 @jit
-def _chain_tangent(x, dx, w, mass, yaw_inertia, com, joint_in_parent, joint_in_child, gravity_xy):
+def chain_tangent(x, dx, w, mass, yaw_inertia, com, joint_in_parent, joint_in_child, gravity_xy):
     """For each direction dx[p] (P, 32): (dM dx[p]) w[p], d(C v) and dg, each (P, 16), where M, C v and g
-    are dynamics._chain_terms' at x and w (P, 16) is the vector the mass matrix's derivative multiplies."""
+    are dynamics.chain_terms' at x and w (P, 16) is the vector the mass matrix's derivative multiplies."""
     nj = joint_in_parent.shape[0]
     nm = nj + 1
     nv = nj + 3
@@ -92,8 +92,8 @@ def _chain_tangent(x, dx, w, mass, yaw_inertia, com, joint_in_parent, joint_in_c
 
 
 @jit
-def _wheel_local_tangent(x, dx, joint_in_parent, joint_in_child, wheel_module, wheel_offset, wheel_toe):
-    """The wheels' local Jacobians L_w = conj(direction_w) J_w (rows: v_long + i v_lat, friction._friction_step)
+def wheel_local_tangent(x, dx, joint_in_parent, joint_in_child, wheel_module, wheel_offset, wheel_toe):
+    """The wheels' local Jacobians L_w = conj(direction_w) J_w (rows: v_long + i v_lat, friction.friction_step)
     at x, (W, 16) complex, and their derivatives along each direction dx[p], (P, W, 16) complex."""
     nj = joint_in_parent.shape[0]
     nv = nj + 3
@@ -142,7 +142,7 @@ def _wheel_local_tangent(x, dx, joint_in_parent, joint_in_child, wheel_module, w
 
 @jit
 def _coulomb_partials(u, mu_n, eps, asymmetry, ratio, speed):
-    """d/d(mu N), d/da and d/dr of friction._coulomb1's Coulomb term mu N (1 + a s)(1 + r d) s."""
+    """d/d(mu N), d/da and d/dr of friction.coulomb_law's Coulomb term mu N (1 + a s)(1 + r d) s."""
     s = u / np.sqrt(u * u + eps * eps)
     decay = np.exp(-(u / speed) ** 2)  # also at r = 0, where d/dr needs it
     return (1.0 + asymmetry * s) * (1.0 + ratio * decay) * s, mu_n * s * s * (1.0 + ratio * decay), \
@@ -150,29 +150,29 @@ def _coulomb_partials(u, mu_n, eps, asymmetry, ratio, speed):
 
 
 @jit
-def _friction_tangent(x, dx, dparams, dcommand, dother, dmass_w, v_plus, mass_matrix, other_force, dt, params,
+def friction_tangent(x, dx, dparams, dcommand, dother, dmass_w, v_plus, mass_matrix, other_force, dt, params,
                       servo_command, servo_power, servo_gains, joint_in_parent, joint_in_child, wheel_module,
                       wheel_offset, wheel_toe):
-    """The friction solve's velocity v+ (friction._friction_step) differentiated along P directions: the state
+    """The friction solve's velocity v+ (friction.friction_step) differentiated along P directions: the state
     dx (P, 32), the parameter vector dparams (P, len(params)), the servo command dcommand (P, 13) and the other
     generalized forces dother (P, 16); dmass_w (P, 16) is (dM dx) (v+ - v). By the implicit function theorem on
     the step's residual R(v+) = M~ v+ - M v - dt other - dt F(v+) = 0: dv+ = -K^-1 dR, with K the Newton
-    matrix at v+ (friction._assemble's exact tangent: the solve's own clips a falling Stribeck law) and dR the
+    matrix at v+ (friction.assemble_step's exact tangent: the solve's own clips a falling Stribeck law) and dR the
     residual's change at fixed v+."""
     nv = x.shape[0] // 2
     nw = wheel_module.shape[0]
     (jac_long, jac_lat, joint_damping, _, normal, jac_head, head_coulomb, joint_coulomb, servo_offset, servo_rate,
-     power, toe) = _friction_problem(x, other_force, mass_matrix, dt, params, servo_command, servo_power, servo_gains,
+     power, toe) = friction_problem(x, other_force, mass_matrix, dt, params, servo_command, servo_power, servo_gains,
                                      joint_in_parent, joint_in_child, wheel_module, wheel_offset, wheel_toe)
     mass_damped = mass_matrix + dt * np.diag(joint_damping)
-    spans = np.array([_span(jac_long, jac_lat, w) for w in range(nw)])
+    spans = np.array([jacobian_span(jac_long, jac_lat, w) for w in range(nw)])
     eps, shape = params[EPS], params[SHAPE]
     mu_long, mu_lat, c_long, c_lat = params[MU_LONG], params[MU_LAT], params[C_LONG], params[C_LAT]
-    _, K, linear = _assemble(v_plus, True, jac_long, jac_lat, spans, mass_damped, dt, mu_long, mu_lat, c_long, c_lat,
+    _, K, linear = assemble_step(v_plus, True, jac_long, jac_lat, spans, mass_damped, dt, mu_long, mu_lat, c_long, c_lat,
                              normal, eps, shape, jac_head, head_coulomb, joint_coulomb, JOINT_EPS_RAD_S, servo_offset,
                              servo_rate, power, True)
     low = cholesky(K)  # the exact tangent may lose definiteness where a Stribeck law falls: LU then
-    local, dlocal = _wheel_local_tangent(x, dx, joint_in_parent, joint_in_child, wheel_module, wheel_offset, toe)
+    local, dlocal = wheel_local_tangent(x, dx, joint_in_parent, joint_in_child, wheel_module, wheel_offset, toe)
     free = params[FAILED] == FREE
     kd = servo_gains[1]
     out = np.empty((dx.shape[0], nv))
@@ -190,8 +190,8 @@ def _friction_tangent(x, dx, dparams, dcommand, dother, dmass_w, v_plus, mass_ma
             dtoe = dp[PER_WHEEL + nw + w]
             du += -1j * u * dtoe  # a toe turns the wheel's frame: dL/dtoe = -i L
             n_w, dn_w = normal[w], dp[PER_WHEEL + w]
-            c_l, _, t_l = _coulomb1(u.real, mu_long * n_w, eps, shape[1], 0.0, shape[3], False)
-            c_t, _, t_t = _coulomb1(u.imag, mu_lat * n_w, eps, shape[0], shape[2], shape[3], False)
+            c_l, _, t_l = coulomb_law(u.real, mu_long * n_w, eps, shape[1], 0.0, shape[3], False)
+            c_t, _, t_t = coulomb_law(u.imag, mu_lat * n_w, eps, shape[0], shape[2], shape[3], False)
             f_l, f_t = -(c_long * u.real + c_l), -(c_lat * u.imag + c_t)
             pl_mu, pl_a, _ = _coulomb_partials(u.real, mu_long * n_w, eps, shape[1], 0.0, shape[3])
             pt_mu, pt_a, pt_r = _coulomb_partials(u.imag, mu_lat * n_w, eps, shape[0], shape[2], shape[3])
@@ -217,21 +217,21 @@ def _friction_tangent(x, dx, dparams, dcommand, dother, dmass_w, v_plus, mass_ma
 
 
 @jit
-def _step_tangent(x, v_plus, v_star, v_new, S, dparams, dcommand, dt, params, servo_command, servo_power, servo_gains,
+def step_tangent(x, v_plus, v_star, v_new, S, dparams, dcommand, dt, params, servo_command, servo_power, servo_gains,
                   mass, yaw_inertia, com, gravity_xy, in_plane, effort, lower, upper, locked, joint_in_parent,
                   joint_in_child, wheel_module, wheel_offset, wheel_toe):
-    """d x_{k+1} (P, 32) of step.py's _plant_step along state directions S (P, 32), parameter directions dparams and
+    """d x_{k+1} (P, 32) of step.py's plant_step along state directions S (P, 32), parameter directions dparams and
     command directions dcommand, given the step's velocities: v+ (the friction solve), v* (the free motion) and
     v_new (after locked joints and limits). Each stage is differentiated as it is computed (step.py)."""
     nv = x.shape[0] // 2
     num = S.shape[0]
     v = x[nv:]
-    M, bias, gravity = _chain_terms(x, mass, yaw_inertia, com, joint_in_parent, joint_in_child, gravity_xy)
+    M, bias, gravity = chain_terms(x, mass, yaw_inertia, com, joint_in_parent, joint_in_child, gravity_xy)
     other = -bias + (gravity if in_plane else np.zeros(nv))
-    mw, dbias, dgravity = _chain_tangent(x, S, np.repeat(v_plus - v, num).reshape(nv, num).T.copy(), mass,
+    mw, dbias, dgravity = chain_tangent(x, S, np.repeat(v_plus - v, num).reshape(nv, num).T.copy(), mass,
                                          yaw_inertia, com, joint_in_parent, joint_in_child, gravity_xy)
     dother = -dbias + (dgravity if in_plane else np.zeros_like(dbias))
-    dv = _friction_tangent(x, S, dparams, dcommand, dother, mw, v_plus, M, other, dt, params, servo_command,
+    dv = friction_tangent(x, S, dparams, dcommand, dother, mw, v_plus, M, other, dt, params, servo_command,
                            servo_power, servo_gains, joint_in_parent, joint_in_child, wheel_module, wheel_offset,
                            wheel_toe)
     # The plant's effort clamp: M (v* - v+) = dt (clamp(servo) - servo).
@@ -241,7 +241,7 @@ def _step_tangent(x, v_plus, v_star, v_new, S, dparams, dcommand, dt, params, se
     over = np.abs(np.minimum(np.maximum(raw, -servo_power), servo_power)) > effort
     if over.any():
         linear = np.abs(raw) < servo_power
-        mws = _chain_tangent(x, S, np.repeat(v_star - v_plus, num).reshape(nv, num).T.copy(), mass, yaw_inertia, com,
+        mws = chain_tangent(x, S, np.repeat(v_star - v_plus, num).reshape(nv, num).T.copy(), mass, yaw_inertia, com,
                              joint_in_parent, joint_in_child, gravity_xy)[0]
         for d in range(num):
             dservo = np.where(linear, dcommand[d] + kd * S[d, nv + 3:] - rate * dv[d, 3:], 0.0)
@@ -265,7 +265,7 @@ def _step_tangent(x, v_plus, v_star, v_new, S, dparams, dcommand, dt, params, se
     if locked.any() or active.any():
         index = np.flatnonzero(free)
         matrix = M[index][:, index].copy()
-        mwn = _chain_tangent(x, S, np.repeat(v_star - v_new, num).reshape(nv, num).T.copy(), mass, yaw_inertia, com,
+        mwn = chain_tangent(x, S, np.repeat(v_star - v_new, num).reshape(nv, num).T.copy(), mass, yaw_inertia, com,
                              joint_in_parent, joint_in_child, gravity_xy)[0]
         rhs = np.empty((num, index.shape[0]))
         for d in range(num):
@@ -276,7 +276,7 @@ def _step_tangent(x, v_plus, v_star, v_new, S, dparams, dcommand, dt, params, se
                 continue
             unit = np.zeros((num, nv))
             unit[:, k] = 1.0
-            dA_kk = _chain_tangent(x, S, unit, mass, yaw_inertia, com, joint_in_parent, joint_in_child,
+            dA_kk = chain_tangent(x, S, unit, mass, yaw_inertia, com, joint_in_parent, joint_in_child,
                                    gravity_xy)[0][:, k]
             c = LIMIT_BETA ** 2 / (4.0 * np.pi ** 2)
             rigid = 1.0 / (dt * LIMIT_STIFFNESS * 2.0 * dt)
