@@ -118,6 +118,7 @@ class CompiledSession:
             raise ValueError(f"initial state must have 32 entries, got shape {x.shape}")
         run = _CompiledRun(self, scenario, setup, x, tuple(sensitivities))
         dt, t_end = scenario.numerics.time_step_s, scenario.stop.time_limit_s
+        run.advance(0, 0)  # no update: numba compiles or loads the kernels here, outside the run's wall time
         start = time.perf_counter()
         status, k = 0, 0
         for failure in sorted((f for f in scenario.failures if 0.0 < f.time_s < t_end), key=lambda f: f.time_s):
