@@ -186,8 +186,8 @@ def jacobian_span(jac_long, jac_lat, w):
 
 @jit
 def assemble_step(v_next, tangent, jac_long, jac_lat, spans, mass_damped, dt, mu_long, mu_lat, c_long, c_lat,
-              normal_force, eps, shape, jac_head, head_coulomb, joint_coulomb, joint_eps, servo_offset, servo_rate,
-              servo_power, exact=False):
+                  normal_force, eps, shape, jac_head, head_coulomb, joint_coulomb, joint_eps, servo_offset, servo_rate,
+                  servo_power, exact=False):
     """The step's generalized force f(v+) (wheels, head, joint Coulomb, servos; Eqs. 4-5) and the matrix
     mass_damped + dt * (rate of -f): its tangent (Newton) if `tangent`, else its secant (the start, which
     linearizes each Coulomb term through the origin); `exact`: the tangent unclipped (coulomb_law). Also returns
@@ -238,8 +238,8 @@ def _step_residual(v_next, jac_long, jac_lat, spans, mass_damped, momentum_free,
                    servo_rate, servo_power):
     """The backward-Euler step's residual M v+ - p_free - dt f(v+) (with c_joint in M) and its Jacobian."""
     force, matrix, _ = assemble_step(v_next, True, jac_long, jac_lat, spans, mass_damped, dt, mu_long, mu_lat, c_long,
-                                 c_lat, normal_force, eps, shape, jac_head, head_coulomb, joint_coulomb, joint_eps,
-                                 servo_offset, servo_rate, servo_power)
+                                     c_lat, normal_force, eps, shape, jac_head, head_coulomb, joint_coulomb, joint_eps,
+                                     servo_offset, servo_rate, servo_power)
     return mass_damped @ v_next - momentum_free - dt * force, matrix
 
 
@@ -257,8 +257,8 @@ def _implicit_friction_force(jac_long, jac_lat, joint_damping, mass_matrix, mome
             jac_head, head_coulomb, joint_coulomb, joint_eps, servo_offset, servo_rate, servo_power)
     # The secant start: each Coulomb term through the origin at its rate at v; the servos as they stand at
     # v, linear where not saturated, a constant torque where saturated.
-    force, matrix, linear = assemble_step(v, False, *args)
-    servo = np.minimum(np.maximum(servo_offset - servo_rate * v, -servo_power), servo_power)
+    _, matrix, linear = assemble_step(v, False, *args)
+    servo = _servo_torque(servo_offset, servo_rate, servo_power, v)[0]
     v_next = spd_solve(matrix, momentum_free + dt * (linear * servo_offset + (1.0 - linear) * servo))
     # Newton steps from that secant start, each backtracked until the residual's norm falls (Armijo): a plain
     # Newton step cycles where the servo clamp or a Coulomb kink switches within the step, and the servos then
@@ -366,7 +366,7 @@ def toe_slice(num_wheels: int) -> slice:
 
 @jit
 def friction_problem(x, other_force, mass_matrix, dt, params, servo_command, servo_power, servo_gains,
-                      joint_in_parent, joint_in_child, wheel_module, wheel_offset, wheel_toe):
+                     joint_in_parent, joint_in_child, wheel_module, wheel_offset, wheel_toe):
     """The implicit step's data at state x: wheel Jacobians along and across the wheels, joint damping,
     the free momentum, the friction-law terms and the servos' backward-Euler offset, rate and power."""
     nw = wheel_module.shape[0]
@@ -400,11 +400,11 @@ def friction_problem(x, other_force, mass_matrix, dt, params, servo_command, ser
 
 @jit
 def friction_step(x, other_force, mass_matrix, dt, params, newton_steps, servo_command, servo_power, servo_gains,
-                   joint_in_parent, joint_in_child, wheel_module, wheel_offset, wheel_toe):
+                  joint_in_parent, joint_in_child, wheel_module, wheel_offset, wheel_toe):
     (jac_long, jac_lat, joint_damping, momentum_free, normal, jac_head, head_coulomb, joint_coulomb, servo_offset,
      servo_rate, power, _) = friction_problem(x, other_force, mass_matrix, dt, params, servo_command, servo_power,
-                                               servo_gains, joint_in_parent, joint_in_child, wheel_module,
-                                               wheel_offset, wheel_toe)
+                                              servo_gains, joint_in_parent, joint_in_child, wheel_module,
+                                              wheel_offset, wheel_toe)
     return _implicit_friction_force(jac_long, jac_lat, joint_damping, mass_matrix, momentum_free, x[x.shape[0] // 2:],
                                     dt, params[MU_LONG], params[MU_LAT], params[C_LONG], params[C_LAT], normal,
                                     params[EPS], newton_steps, params[SHAPE], jac_head, head_coulomb, joint_coulomb,
@@ -498,8 +498,8 @@ class FrictionForces(LeafSystem):
         # The plant applies gravity and the bias term itself; the extra forces only reach it through this output.
         extra = sum((force(x) for force in self.extra_forces), np.zeros(len(other))) if self.extra_forces else 0.0
         friction, servo = friction_step(x, other + extra, plant.CalcMassMatrix(plant_context), self._dt, params,
-                                         self.NEWTON_STEPS, command_port.Eval(context), power_port.Eval(context),
-                                         self._servo_gains, *self._geometry)
+                                        self.NEWTON_STEPS, command_port.Eval(context), power_port.Eval(context),
+                                        self._servo_gains, *self._geometry)
         step = value.get_mutable_value()
         step[: len(other)] = friction + extra
         step[len(other):] = servo[3:]

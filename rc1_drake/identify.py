@@ -16,6 +16,7 @@ import numpy as np
 
 from .config import FRICTION_NAMES, Z95, Friction, Rc1Error
 from .engine import default_engine
+from .engine.session import SENSITIVITY_PARAMETERS
 from .executor import make_executor
 
 # The paper's manually tuned starting point (section 4).
@@ -334,8 +335,6 @@ def _replay_residual_and_jacobian(trial, friction: Friction, effects, names) -> 
 def exact_jacobian_available(names) -> bool:
     """Whether replays can give the residuals' derivatives by `names` exactly (the compiled engine's
     sensitivities), in place of finite-difference columns."""
-    from .engine.session import SENSITIVITY_PARAMETERS
-
     return default_engine() == "compiled" and all(n in SENSITIVITY_PARAMETERS for n in names)
 
 

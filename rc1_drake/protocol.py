@@ -131,8 +131,10 @@ class Session:
         trajectory = getattr(joint_reference, "trajectory", joint_reference)
         self.built.diagram.GetSubsystemByName("joint_reference").UpdateTrajectory(trajectory)
 
-    def simulate(self, scenario: Scenario, *, initial=None) -> Run:
+    def simulate(self, scenario: Scenario, *, initial=None, sensitivities=()) -> Run:
         """Run `scenario` (from `initial`, a plant state, if given) on this Session's Diagram."""
+        if sensitivities:
+            raise Rc1Error("sensitivities need the compiled engine (--engine compiled)")
         built, simulator = self.built, self.simulator
         if build_key(scenario, self.joint_reference) != built.build_key:
             raise ValueError("scenario needs a different Diagram (gait, servo gains or numerics differ)")

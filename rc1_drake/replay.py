@@ -100,9 +100,7 @@ class Replayer:
     def run(self, friction: Friction, effects=None, *, sensitivities=()) -> Run:
         """The replay; with `sensitivities` (names, compiled engine) also d state / d parameter (Run.sensitivity)."""
         scenario = replay_scenario(self.trial, friction, effects, self.numerics)
-        if sensitivities:
-            return self.session.simulate(scenario, initial=self.initial, sensitivities=sensitivities)
-        return self.session.simulate(scenario, initial=self.initial)
+        return self.session.simulate(scenario, initial=self.initial, sensitivities=sensitivities)
 
     def angle_noise_rad(self) -> float:
         """The potentiometers' noise as the smoothing sees it (JointReference.noise_rad)."""

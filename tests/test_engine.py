@@ -57,7 +57,7 @@ def test_chain_terms_match_the_plant_on_random_states():
         set_payload(plant, context, payload_module, 0.4)
         plant.SetPositionsAndVelocities(context, x)
         M, bias, g = chain_terms(x, numbers.masses(payload_module, 0.4), numbers.central_yaw_inertia, numbers.com,
-                                  jp, jc, complex(gravity[0], gravity[1]))
+                                 jp, jc, complex(gravity[0], gravity[1]))
         np.testing.assert_allclose(M, plant.CalcMassMatrix(context), atol=1e-12)
         np.testing.assert_allclose(bias, plant.CalcBiasTerm(context), atol=1e-11)
         np.testing.assert_allclose(g, plant.CalcGravityGeneralizedForces(context), atol=1e-12)
@@ -151,9 +151,13 @@ def test_an_effect_with_a_python_force_runs_on_the_drake_engine_and_says_so(caps
     fx.register(Push())
     try:
         scenario = short(Scenario(effects={"test_engine_push_N": 0.5}), 0.3)
-        pushed = make_session(scenario, engine="compiled").simulate(scenario)
+        session = make_session(scenario, engine="compiled")
+        pushed = session.simulate(scenario)
         assert "Drake engine" in capsys.readouterr().err
         assert_equivalent(Session(scenario).simulate(scenario), pushed)
+        # Another gait needs another Diagram: the fallback builds it, as the compiled engine needs none.
+        faster = dataclasses.replace(scenario, gait=Gait(frequency_deg_s=180.0))
+        assert_equivalent(Session(faster).simulate(faster), session.simulate(faster))
         plain = CompiledSession().simulate(short(Scenario(), 0.3))
         assert pushed.head_xy[-1, 0] > plain.head_xy[-1, 0] + 1e-3  # the push acted
     finally:

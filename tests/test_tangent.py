@@ -93,7 +93,7 @@ def test_friction_tangent_matches_central_differences_of_the_solve():
     M, bias, _ = chain_terms(x, mass, inertia, com, jp, jc, 0j)
     mw, dbias, _ = chain_tangent(x, dx, np.tile(base - x[16:], (count, 1)), mass, inertia, com, jp, jc, 0j)
     tangent = friction_tangent(x, dx, dparams, dcommand, -dbias, mw, base, M, -bias, dt, params, command, power, gains,
-                                *geometry.arrays)
+                               *geometry.arrays)
     h = 1e-5
     for d in range(count):
         expected = (v_plus(x + h * dx[d], params + h * dparams[d], command + h * dcommand[d])
@@ -146,3 +146,17 @@ def test_run_sensitivities_match_central_differences_of_whole_runs():
             scale = np.abs(expected).max()
             assert scale > 1e-3, name
             np.testing.assert_allclose(exact.sensitivity[-1, p], expected, atol=1e-4 * scale, err_msg=name)
+
+
+def test_sensitivities_by_an_unknown_name_or_on_the_drake_engine_are_refused():
+    import pytest
+
+    from rc1_drake.config import Rc1Error, Scenario, Stop
+    from rc1_drake.engine.session import CompiledSession
+    from rc1_drake.protocol import Session
+
+    scenario = Scenario(stop=Stop(time_limit_s=0.01))
+    with pytest.raises(ValueError, match="no sensitivity for 'ground_slope_deg'"):
+        CompiledSession().simulate(scenario, sensitivities=["ground_slope_deg"])
+    with pytest.raises(Rc1Error, match="need the compiled engine"):
+        Session(scenario).simulate(scenario, sensitivities=["mu_lat"])

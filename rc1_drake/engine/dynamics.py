@@ -58,7 +58,8 @@ def plant_numbers() -> PlantNumbers:
                 for k in range(1, NUM_MODULES + 1)]
     com = np.array([complex(*s.get_com()[:2]) for s in inertias])
     central = np.array([s.Shift(s.get_com()).CalcRotationalInertia().get_moments()[2] for s in inertias])
-    return PlantNumbers(geometry=rc1.geometry, com=com, central_yaw_inertia=central, effort_limit=np.array(rc1.effort_limit, dtype=float),
+    return PlantNumbers(geometry=rc1.geometry, com=com, central_yaw_inertia=central,
+                        effort_limit=np.array(rc1.effort_limit, dtype=float),
                         lower_limit=np.array([j.position_lower_limits()[0] for j in rc1.joints]),
                         upper_limit=np.array([j.position_upper_limits()[0] for j in rc1.joints]))
 

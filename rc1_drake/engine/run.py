@@ -19,9 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..friction import spd_solve
 from ..kinematics import jit
-from .dynamics import chain_terms
 from .step import plant_step
 from .tangent import step_tangent
 
@@ -88,20 +86,18 @@ def _sensitivity_step(x, x_next, v_star, force_plus, command, sens, sens_z, sens
     the heading controller (the serpenoid's and the replay reference's time terms do not depend on parameters)."""
     nq = x.shape[0] // 2
     num = sens.shape[0]
-    M = chain_terms(x, mass, yaw_inertia, com, joint_in_parent, joint_in_child, gravity_xy)[0]
-    v_plus = x[nq:] + dt * spd_solve(M, force_plus)
-    weights = heading[5:]
+    weights = heading[5:]  # the heading's weights on the positions (zero without heading control)
     kp_h, ki_h = _heading_gain(x, heading, z_heading)
     dcommand = np.empty((num, nq - 3))
     for d in range(num):
-        dtheta = kp_h * (weights @ sens[d, :nq]) + ki_h * sens_zh[d] if weights.shape[0] else 0.0
+        dtheta = kp_h * (weights @ sens[d, :nq]) + ki_h * sens_zh[d]
         dcommand[d] = gains[1] * sens_z[d] + gains[0] * (dtheta - sens[d, 3:nq]) - gains[2] * sens[d, nq + 3:]
-    new = step_tangent(x, v_plus, v_star, x_next[nq:], sens, dparams, dcommand, dt, params, command, power,
-                        servo_gains, mass, yaw_inertia, com, gravity_xy, in_plane, effort, lower, upper, locked,
-                        joint_in_parent, joint_in_child, wheel_module, wheel_offset, wheel_toe)
+    new = step_tangent(x, force_plus, v_star, x_next[nq:], sens, dparams, dcommand, dt, params, command, power,
+                       servo_gains, mass, yaw_inertia, com, gravity_xy, in_plane, effort, lower, upper, locked,
+                       joint_in_parent, joint_in_child, wheel_module, wheel_offset, wheel_toe)
     kp_n, ki_n = _heading_gain(x_next, heading, z_heading)
     for d in range(num):
-        de = weights @ new[d, :nq] if weights.shape[0] else 0.0
+        de = weights @ new[d, :nq]
         sens_z[d] += dt * (kp_n * de + ki_n * sens_zh[d] - new[d, 3:nq])
         sens_zh[d] += dt * de
     sens[:] = new
@@ -109,9 +105,9 @@ def _sensitivity_step(x, x_next, v_star, force_plus, command, sens, sens_z, sens
 
 @jit
 def advance_run(x, z_pid, z_heading, segment, k0, k1, t_first, dt, extra_force, params, power, locked,
-             log_steps, log_times, log_next, last_torque, log_state, log_torque, source, gait, heading, breaks, values,
-             rates, gains, stop, model, mass, yaw_inertia, com, effort, lower, upper, joint_in_parent,
-             joint_in_child, wheel_module, wheel_offset, wheel_toe, sens, sens_z, sens_zh, dparams, log_sens):
+                log_steps, log_times, log_next, last_torque, log_state, log_torque, source, gait, heading, breaks,
+                values, rates, gains, stop, model, mass, yaw_inertia, com, effort, lower, upper, joint_in_parent,
+                joint_in_child, wheel_module, wheel_offset, wheel_toe, sens, sens_z, sens_zh, dparams, log_sens):
     """Take the updates k0 <= k < k1 in place on the carried state (x, z_pid, z_heading, segment, log_next,
     last_torque); returns (status, k) with k the index of the state x now holds. Failures change params,
     power and locked between calls (session.py), as the failure switch does between AdvanceTo calls.
@@ -132,9 +128,9 @@ def advance_run(x, z_pid, z_heading, segment, k0, k1, t_first, dt, extra_force, 
         e_pos = theta - x[3:nq]
         command = gains[1] * z_pid + gains[0] * e_pos + gains[2] * (theta_dot - x[nq + 3:])
         x_next, torque, v_star, force_plus = plant_step(x, dt, params, command, power, servo_gains, extra_force,
-                                                         mass, yaw_inertia, com, gravity_xy, in_plane, effort, lower,
-                                                         upper, locked, joint_in_parent, joint_in_child, wheel_module,
-                                                         wheel_offset, wheel_toe)
+                                                        mass, yaw_inertia, com, gravity_xy, in_plane, effort, lower,
+                                                        upper, locked, joint_in_parent, joint_in_child, wheel_module,
+                                                        wheel_offset, wheel_toe)
         while log_next[0] < log_steps.shape[0] and log_steps[log_next[0]] == k:
             row = log_next[0]
             log_state[row] = x
@@ -146,9 +142,9 @@ def advance_run(x, z_pid, z_heading, segment, k0, k1, t_first, dt, extra_force, 
                                                rates, segment)
                 between = gains[1] * z_pid + gains[0] * (theta - x[3:nq]) + gains[2] * (theta_dot - x[nq + 3:])
                 log_torque[row] = plant_step(x, dt, params, between, power, servo_gains, extra_force, mass,
-                                              yaw_inertia, com, gravity_xy, in_plane, effort, lower, upper, locked,
-                                              joint_in_parent, joint_in_child, wheel_module, wheel_offset,
-                                              wheel_toe)[1]
+                                             yaw_inertia, com, gravity_xy, in_plane, effort, lower, upper, locked,
+                                             joint_in_parent, joint_in_child, wheel_module, wheel_offset,
+                                             wheel_toe)[1]
             log_next[0] += 1
         last_torque[:] = torque
         # The plant updates its state before the controllers update theirs (an unrestricted update comes

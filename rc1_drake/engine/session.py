@@ -17,7 +17,8 @@ from ..effects import commanded_gait, model_setup
 from .. import friction as fr
 from ..friction import FAILED, FREE, LOCKED, friction_parameters
 from ..gait import serpenoid_parameters
-from ..protocol import Run, initial_state
+from ..diagram import build_key
+from ..protocol import Run, Session, initial_state
 from .dynamics import plant_numbers
 from .run import CIRCLING, CROSSED, NOT_FINITE, REFERENCE, SERPENOID, advance_run
 
@@ -97,11 +98,10 @@ class CompiledSession:
 
     def _on_drake(self, scenario: Scenario, initial) -> Run:
         """Runs whose effects carry a Python force (ModelSetup.extra_forces) go to the Drake engine."""
-        from ..protocol import Session
-
-        if self._drake is None:
-            _warn_once("an effect adds a Python force (ModelSetup.extra_forces), which the compiled engine "
-                       "cannot call: such runs use the Drake engine")
+        _warn_once("an effect adds a Python force (ModelSetup.extra_forces), which the compiled engine cannot "
+                   "call: such runs use the Drake engine")
+        drake = self._drake
+        if drake is None or build_key(scenario, drake.joint_reference) != drake.built.build_key:
             self._drake = Session(scenario, joint_reference=self._trajectory())
         return self._drake.simulate(scenario, initial=initial)
 
@@ -140,9 +140,9 @@ class CompiledSession:
             state = np.vstack([state, run.x])
             torque = np.vstack([torque, run.probe(k, t_stop, logs=False)])
             sensitivity = np.concatenate([sensitivity, run.sens[None]])
-        return Run(scenario=scenario, t=t, state=state, servo_torque=torque, stop_reason=_REASON.get(status, "timed_out"),
-                   wall_time_s=wall, geometry=self.geometry, sensitivity=sensitivity if run.names else None,
-                   sensitivity_names=run.names)
+        return Run(scenario=scenario, t=t, state=state, servo_torque=torque,
+                   stop_reason=_REASON.get(status, "timed_out"), wall_time_s=wall, geometry=self.geometry,
+                   sensitivity=sensitivity if run.names else None, sensitivity_names=run.names)
 
     def _fail(self, failure, params, power, locked, x) -> None:
         """servo.FailureSwitch.fail on the compiled engine's arrays."""
@@ -217,8 +217,9 @@ class _CompiledRun:
     def advance(self, k0: int, k1: int, t_first: float = np.nan, *, carried=None) -> tuple:
         """Updates k0 <= k < k1 (run.advance_run) on the carried state, or on `carried` (a copy) if given."""
         x, z, zh, seg, params, power, locked, log_next, last, sens, sens_z, sens_zh = carried or self._carried()
-        return advance_run(x, z, zh, seg, k0, k1, t_first, self.dt, np.zeros(16), params, power, locked, self.log_steps,
-                        self.log_t, log_next, last, *self.constant, sens, sens_z, sens_zh, self.dparams, self.log_sens)
+        return advance_run(x, z, zh, seg, k0, k1, t_first, self.dt, np.zeros(16), params, power, locked,
+                           self.log_steps, self.log_t, log_next, last, *self.constant, sens, sens_z, sens_zh,
+                           self.dparams, self.log_sens)
 
     def _carried(self) -> list:
         return [self.x, self.z, self.z_heading, self.segment, self.params, self.power, self.locked, self.log_next,
@@ -244,23 +245,21 @@ class _CompiledRun:
                 self.log_sens[:rows].copy())
 
 
-SENSITIVITY_PARAMETERS = ("c_joint", "mu_lat", "mu_long", "c_lat", "c_long", "lateral_friction_asymmetry",
-                          "longitudinal_friction_asymmetry", "stribeck_ratio", "head_drag_mu", "joint_coulomb_Nm",
-                          "wheel_toe_deg")
+# The parameters a run can be differentiated by, and where each sits in the friction parameter vector.
+_SENSITIVITY_INDEX = {"c_joint": fr.C_JOINT, "mu_lat": fr.MU_LAT, "mu_long": fr.MU_LONG, "c_lat": fr.C_LAT,
+                      "c_long": fr.C_LONG, "lateral_friction_asymmetry": fr.SHAPE.start,
+                      "longitudinal_friction_asymmetry": fr.SHAPE.start + 1, "stribeck_ratio": fr.SHAPE.start + 2,
+                      "head_drag_mu": fr.HEAD_MU, "joint_coulomb_Nm": fr.JOINT_COULOMB}
+SENSITIVITY_PARAMETERS = (*_SENSITIVITY_INDEX, "wheel_toe_deg")  # the toe: every wheel's, in degrees
 
 
 def sensitivity_direction(name: str, size: int) -> np.ndarray:
     """The change of the friction parameter vector (friction.py's layout) per unit of parameter `name`."""
-    index = {"c_joint": fr.C_JOINT, "mu_lat": fr.MU_LAT, "mu_long": fr.MU_LONG, "c_lat": fr.C_LAT,
-             "c_long": fr.C_LONG, "lateral_friction_asymmetry": fr.SHAPE.start,
-             "longitudinal_friction_asymmetry": fr.SHAPE.start + 1, "stribeck_ratio": fr.SHAPE.start + 2,
-             "head_drag_mu": fr.HEAD_MU, "joint_coulomb_Nm": fr.JOINT_COULOMB}
     direction = np.zeros(size)
     if name == "wheel_toe_deg":
-        wheels = (size - fr.PER_WHEEL) // 2
-        direction[fr.toe_slice(wheels)] = math.pi / 180.0
-    elif name in index:
-        direction[index[name]] = 1.0
+        direction[fr.toe_slice((size - fr.PER_WHEEL) // 2)] = math.pi / 180.0
+    elif name in _SENSITIVITY_INDEX:
+        direction[_SENSITIVITY_INDEX[name]] = 1.0
     else:
         raise ValueError(f"no sensitivity for '{name}' (known: {', '.join(SENSITIVITY_PARAMETERS)})")
     return direction

@@ -5,8 +5,8 @@ Drake step it mirrors (tests/test_engine.py holds the two together).
        giving the friction force and the servos' backward-Euler torque;
     2. the discrete plant (SAP): free motion v* = v + dt M^-1 (-C v + g + friction + extra
        + clamp(servo, +-effort limit)) (Eq. 1; the plant clamps actuation at the SDF's effort limit),
-       locked joints held (their velocity 0, the others' the A-norm projection of v*), then the joint limits as SAP's unilateral
-       constraints (below), then q+ = q + dt v+.
+       locked joints held (their velocity 0, the others' the A-norm projection of v*), then the joint
+       limits as SAP's unilateral constraints (below), then q+ = q + dt v+.
 
 The joint limits (paper section 3: the restoring torque at +-38 deg) follow Drake's SapDriver and
 SapLimitConstraint: a limit is a constraint only if it lies within q0 +- 2 dt max(|v0|, |v*|); its
@@ -31,18 +31,16 @@ LIMIT_WINDOW = 2.0
 
 
 @jit
-def _limit_solve(q, v, v_star, A, dt, lower, upper, locked):
-    """v+ of the SAP step with joint-limit constraints, locked joints held at rate 0 (module docstring)."""
-    nv = v.shape[0]
+def rigid_regularization(dt):
+    """The regularization of a limit as stiff as SAP's: 1 / (dt k (dt + tau_d)), tau_d = dt."""
+    return 1.0 / (dt * LIMIT_STIFFNESS * 2.0 * dt)
+
+
+@jit
+def limit_constraints(q, v, v_star, A, dt, lower, upper, locked):
+    """SAP's joint-limit constraints of the step (module docstring): for each limit within the window, its
+    dof, sign (+1 lower, -1 upper), v_hat and 1/R; returns those arrays and their count."""
     nj = lower.shape[0]
-    free = np.ones(nv, dtype=np.bool_)
-    free[3:] = ~locked
-    out = v_star.copy()
-    if locked.any():  # min |v - v*|_A with v_locked = 0: A_uu v_u = (A v*)_u
-        index = np.flatnonzero(free)
-        out[:] = 0.0
-        out[index] = spd_solve(np.ascontiguousarray(A[index][:, index]), (A @ v_star)[index])
-    # The limit constraints within the window: dof, sign (+1 lower, -1 upper), v_hat, 1/R.
     dofs = np.empty(nj, dtype=np.int64)
     signs = np.empty(nj)
     v_hat = np.empty(nj)
@@ -57,12 +55,27 @@ def _limit_solve(q, v, v_star, A, dt, lower, upper, locked):
         for sign, limit in ((1.0, lower[j]), (-1.0, upper[j])):
             if (sign > 0.0 and limit >= q0 - dq) or (sign < 0.0 and limit <= q0 + dq):
                 w = 1.0 / A[d, d]
-                R = max(LIMIT_BETA ** 2 / (4.0 * np.pi ** 2) * w, 1.0 / (dt * LIMIT_STIFFNESS * 2.0 * dt))
+                R = max(LIMIT_BETA ** 2 / (4.0 * np.pi ** 2) * w, rigid_regularization(dt))
                 dofs[count] = d
                 signs[count] = sign
                 v_hat[count] = -sign * (q0 - limit) / (2.0 * dt)
                 r_inv[count] = 1.0 / R
                 count += 1
+    return dofs, signs, v_hat, r_inv, count
+
+
+@jit
+def _limit_solve(q, v, v_star, A, dt, lower, upper, locked):
+    """v+ of the SAP step with joint-limit constraints, locked joints held at rate 0 (module docstring)."""
+    nv = v.shape[0]
+    free = np.ones(nv, dtype=np.bool_)
+    free[3:] = ~locked
+    out = v_star.copy()
+    if locked.any():  # min |v - v*|_A with v_locked = 0: A_uu v_u = (A v*)_u
+        index = np.flatnonzero(free)
+        out[:] = 0.0
+        out[index] = spd_solve(np.ascontiguousarray(A[index][:, index]), (A @ v_star)[index])
+    dofs, signs, v_hat, r_inv, count = limit_constraints(q, v, v_star, A, dt, lower, upper, locked)
     if count == 0:
         return out
     index = np.flatnonzero(free)
@@ -95,8 +108,8 @@ def _limit_solve(q, v, v_star, A, dt, lower, upper, locked):
 
 @jit
 def plant_step(x, dt, params, servo_command, servo_power, servo_gains, extra_force, mass, yaw_inertia, com,
-                gravity_xy, gravity_in_plane, effort, lower, upper, locked, joint_in_parent, joint_in_child,
-                wheel_module, wheel_offset, wheel_toe):
+               gravity_xy, gravity_in_plane, effort, lower, upper, locked, joint_in_parent, joint_in_child,
+               wheel_module, wheel_offset, wheel_toe):
     """(x+, servo torque (13,), v*, the force that gives the friction solve's v+ = v + dt M^-1 force) of one
     Diagram step from state x (module docstring)."""
     nv = x.shape[0] // 2
@@ -105,8 +118,8 @@ def plant_step(x, dt, params, servo_command, servo_power, servo_gains, extra_for
     if gravity_in_plane:
         other = other + gravity
     friction, servo = friction_step(x, other + extra_force, M, dt, params, NEWTON_STEPS, servo_command, servo_power,
-                                     servo_gains, joint_in_parent, joint_in_child, wheel_module, wheel_offset,
-                                     wheel_toe)
+                                    servo_gains, joint_in_parent, joint_in_child, wheel_module, wheel_offset,
+                                    wheel_toe)
     tau = -bias + gravity + friction + extra_force  # the plant applies its gravity field itself
     tau[3:] += np.minimum(np.maximum(servo[3:], -effort), effort)
     v = x[nv:]

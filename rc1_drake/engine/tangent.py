@@ -17,11 +17,11 @@ from __future__ import annotations
 import numpy as np
 
 from ..friction import (C_JOINT, C_LAT, C_LONG, EPS, FAILED, FREE, HEAD_MU, HEAD_NORMAL, JOINT_COULOMB,
-                        JOINT_EPS_RAD_S, MU_LAT, MU_LONG, PER_WHEEL, SHAPE, assemble_step, coulomb_law, friction_problem,
-                        jacobian_span, cholesky, cholesky_solve, spd_solve)
+                        JOINT_EPS_RAD_S, MU_LAT, MU_LONG, PER_WHEEL, SHAPE, assemble_step, cholesky, cholesky_solve,
+                        coulomb_law, friction_problem, jacobian_span, spd_solve)
 from ..kinematics import jit
 from .dynamics import chain_terms
-from .step import LIMIT_BETA, LIMIT_STIFFNESS, LIMIT_WINDOW
+from .step import LIMIT_BETA, limit_constraints, rigid_regularization
 
 
 @jit
@@ -151,8 +151,8 @@ def _coulomb_partials(u, mu_n, eps, asymmetry, ratio, speed):
 
 @jit
 def friction_tangent(x, dx, dparams, dcommand, dother, dmass_w, v_plus, mass_matrix, other_force, dt, params,
-                      servo_command, servo_power, servo_gains, joint_in_parent, joint_in_child, wheel_module,
-                      wheel_offset, wheel_toe):
+                     servo_command, servo_power, servo_gains, joint_in_parent, joint_in_child, wheel_module,
+                     wheel_offset, wheel_toe):
     """The friction solve's velocity v+ (friction.friction_step) differentiated along P directions: the state
     dx (P, 32), the parameter vector dparams (P, len(params)), the servo command dcommand (P, 13) and the other
     generalized forces dother (P, 16); dmass_w (P, 16) is (dM dx) (v+ - v). By the implicit function theorem on
@@ -163,14 +163,14 @@ def friction_tangent(x, dx, dparams, dcommand, dother, dmass_w, v_plus, mass_mat
     nw = wheel_module.shape[0]
     (jac_long, jac_lat, joint_damping, _, normal, jac_head, head_coulomb, joint_coulomb, servo_offset, servo_rate,
      power, toe) = friction_problem(x, other_force, mass_matrix, dt, params, servo_command, servo_power, servo_gains,
-                                     joint_in_parent, joint_in_child, wheel_module, wheel_offset, wheel_toe)
+                                    joint_in_parent, joint_in_child, wheel_module, wheel_offset, wheel_toe)
     mass_damped = mass_matrix + dt * np.diag(joint_damping)
     spans = np.array([jacobian_span(jac_long, jac_lat, w) for w in range(nw)])
     eps, shape = params[EPS], params[SHAPE]
     mu_long, mu_lat, c_long, c_lat = params[MU_LONG], params[MU_LAT], params[C_LONG], params[C_LAT]
-    _, K, linear = assemble_step(v_plus, True, jac_long, jac_lat, spans, mass_damped, dt, mu_long, mu_lat, c_long, c_lat,
-                             normal, eps, shape, jac_head, head_coulomb, joint_coulomb, JOINT_EPS_RAD_S, servo_offset,
-                             servo_rate, power, True)
+    _, K, linear = assemble_step(v_plus, True, jac_long, jac_lat, spans, mass_damped, dt, mu_long, mu_lat, c_long,
+                                 c_lat, normal, eps, shape, jac_head, head_coulomb, joint_coulomb, JOINT_EPS_RAD_S,
+                                 servo_offset, servo_rate, power, True)
     low = cholesky(K)  # the exact tangent may lose definiteness where a Stribeck law falls: LU then
     local, dlocal = wheel_local_tangent(x, dx, joint_in_parent, joint_in_child, wheel_module, wheel_offset, toe)
     free = params[FAILED] == FREE
@@ -217,23 +217,33 @@ def friction_tangent(x, dx, dparams, dcommand, dother, dmass_w, v_plus, mass_mat
 
 
 @jit
-def step_tangent(x, v_plus, v_star, v_new, S, dparams, dcommand, dt, params, servo_command, servo_power, servo_gains,
-                  mass, yaw_inertia, com, gravity_xy, in_plane, effort, lower, upper, locked, joint_in_parent,
-                  joint_in_child, wheel_module, wheel_offset, wheel_toe):
+def _rows(w, num):
+    """w (n,) repeated as num rows."""
+    out = np.empty((num, w.shape[0]))
+    out[:] = w
+    return out
+
+
+@jit
+def step_tangent(x, force_plus, v_star, v_new, S, dparams, dcommand, dt, params, servo_command, servo_power,
+                 servo_gains, mass, yaw_inertia, com, gravity_xy, in_plane, effort, lower, upper, locked,
+                 joint_in_parent, joint_in_child, wheel_module, wheel_offset, wheel_toe):
     """d x_{k+1} (P, 32) of step.py's plant_step along state directions S (P, 32), parameter directions dparams and
-    command directions dcommand, given the step's velocities: v+ (the friction solve), v* (the free motion) and
-    v_new (after locked joints and limits). Each stage is differentiated as it is computed (step.py)."""
+    command directions dcommand, given the step's forces and velocities: the friction solve's v+ = v + dt M^-1
+    force_plus, v* (the free motion) and v_new (after locked joints and limits). Each stage is differentiated as
+    it is computed (step.py)."""
     nv = x.shape[0] // 2
     num = S.shape[0]
     v = x[nv:]
     M, bias, gravity = chain_terms(x, mass, yaw_inertia, com, joint_in_parent, joint_in_child, gravity_xy)
+    v_plus = v + dt * spd_solve(M, force_plus)
     other = -bias + (gravity if in_plane else np.zeros(nv))
-    mw, dbias, dgravity = chain_tangent(x, S, np.repeat(v_plus - v, num).reshape(nv, num).T.copy(), mass,
-                                         yaw_inertia, com, joint_in_parent, joint_in_child, gravity_xy)
+    mw, dbias, dgravity = chain_tangent(x, S, _rows(v_plus - v, num), mass, yaw_inertia, com, joint_in_parent,
+                                        joint_in_child, gravity_xy)
     dother = -dbias + (dgravity if in_plane else np.zeros_like(dbias))
     dv = friction_tangent(x, S, dparams, dcommand, dother, mw, v_plus, M, other, dt, params, servo_command,
-                           servo_power, servo_gains, joint_in_parent, joint_in_child, wheel_module, wheel_offset,
-                           wheel_toe)
+                          servo_power, servo_gains, joint_in_parent, joint_in_child, wheel_module, wheel_offset,
+                          wheel_toe)
     # The plant's effort clamp: M (v* - v+) = dt (clamp(servo) - servo).
     kp, kd = servo_gains
     rate = kd + dt * kp
@@ -241,52 +251,45 @@ def step_tangent(x, v_plus, v_star, v_new, S, dparams, dcommand, dt, params, ser
     over = np.abs(np.minimum(np.maximum(raw, -servo_power), servo_power)) > effort
     if over.any():
         linear = np.abs(raw) < servo_power
-        mws = chain_tangent(x, S, np.repeat(v_star - v_plus, num).reshape(nv, num).T.copy(), mass, yaw_inertia, com,
-                             joint_in_parent, joint_in_child, gravity_xy)[0]
+        mws = chain_tangent(x, S, _rows(v_star - v_plus, num), mass, yaw_inertia, com, joint_in_parent,
+                            joint_in_child, gravity_xy)[0]
         for d in range(num):
             dservo = np.where(linear, dcommand[d] + kd * S[d, nv + 3:] - rate * dv[d, 3:], 0.0)
             rhs = -mws[d]
             rhs[3:] -= dt * np.where(over, dservo, 0.0)
             dv[d] += spd_solve(M, rhs)
-    # Locked joints and the limits' active set (step._limit_solve): (A_r + D) v_r = (A v*)_r + h.
-    free = np.ones(nv, dtype=np.bool_)
-    free[3:] = ~locked
-    active = np.zeros(nv, dtype=np.bool_)
-    sign = np.zeros(nv)
-    for j in range(lower.shape[0]):
-        k = 3 + j
-        if locked[j]:
-            continue
-        window = LIMIT_WINDOW * dt * max(abs(v[k]), abs(v_star[k]))
-        for s, limit in ((1.0, lower[j]), (-1.0, upper[j])):
-            inside = limit >= x[k] - window if s > 0.0 else limit <= x[k] + window
-            if inside and -s * (x[k] - limit) / (2.0 * dt) - s * v_new[k] > 0.0:
-                active[k], sign[k] = True, s
+    # Locked joints and the limits' active set (step._limit_solve): (A_r + D) v_r = (A v*)_r + h, with D = 1/R
+    # and h = sign v_hat / R on the active constraints.
+    dofs, signs, v_hat, r_inv, count = limit_constraints(x[:nv], v, v_star, M, dt, lower, upper, locked)
+    active = np.zeros(count, dtype=np.bool_)
+    for i in range(count):
+        active[i] = v_hat[i] - signs[i] * v_new[dofs[i]] > 0.0
     if locked.any() or active.any():
+        free = np.ones(nv, dtype=np.bool_)
+        free[3:] = ~locked
         index = np.flatnonzero(free)
+        position = np.full(nv, -1, dtype=np.int64)
+        position[index] = np.arange(index.shape[0])
         matrix = M[index][:, index].copy()
-        mwn = chain_tangent(x, S, np.repeat(v_star - v_new, num).reshape(nv, num).T.copy(), mass, yaw_inertia, com,
-                             joint_in_parent, joint_in_child, gravity_xy)[0]
+        mwn = chain_tangent(x, S, _rows(v_star - v_new, num), mass, yaw_inertia, com, joint_in_parent,
+                            joint_in_child, gravity_xy)[0]
         rhs = np.empty((num, index.shape[0]))
         for d in range(num):
             rhs[d] = (mwn[d] + M @ dv[d])[index]
-        for r in range(index.shape[0]):
-            k = index[r]
-            if not active[k]:
+        c = LIMIT_BETA ** 2 / (4.0 * np.pi ** 2)
+        for i in range(count):
+            if not active[i]:
                 continue
+            k, r, R = dofs[i], position[dofs[i]], 1.0 / r_inv[i]
             unit = np.zeros((num, nv))
             unit[:, k] = 1.0
             dA_kk = chain_tangent(x, S, unit, mass, yaw_inertia, com, joint_in_parent, joint_in_child,
-                                   gravity_xy)[0][:, k]
-            c = LIMIT_BETA ** 2 / (4.0 * np.pi ** 2)
-            rigid = 1.0 / (dt * LIMIT_STIFFNESS * 2.0 * dt)
-            R = max(c / M[k, k], rigid)
-            v_hat = -sign[k] * (x[k] - (lower[k - 3] if sign[k] > 0.0 else upper[k - 3])) / (2.0 * dt)
-            matrix[r, r] += 1.0 / R
+                                  gravity_xy)[0][:, k]
+            matrix[r, r] += r_inv[i]
             for d in range(num):
-                dR = -c * dA_kk[d] / M[k, k] ** 2 if c / M[k, k] > rigid else 0.0
-                dv_hat = -sign[k] * S[d, k] / (2.0 * dt)
-                rhs[d, r] += sign[k] * (dv_hat / R - v_hat * dR / R ** 2) + dR / R ** 2 * v_new[k]
+                dR = -c * dA_kk[d] / M[k, k] ** 2 if c / M[k, k] > rigid_regularization(dt) else 0.0
+                dv_hat = -signs[i] * S[d, k] / (2.0 * dt)
+                rhs[d, r] += signs[i] * (dv_hat / R - v_hat[i] * dR / R ** 2) + dR / R ** 2 * v_new[k]
         for d in range(num):
             solved = spd_solve(matrix, rhs[d])
             dv[d, :] = 0.0
