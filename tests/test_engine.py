@@ -163,3 +163,15 @@ def test_an_effect_with_a_python_force_runs_on_the_drake_engine_and_says_so(caps
     finally:
         fx.LIBRARY.pop("test_engine_push")
     assert model_setup({}).extra_forces == []
+
+
+def test_a_bad_engine_name_is_refused_with_the_variable_named(monkeypatch):
+    from rc1_drake.engine import default_engine, use_engine
+
+    monkeypatch.setenv("RC1_ENGINE", "fast")
+    with pytest.raises(ValueError, match=r"\$RC1_ENGINE: unknown engine 'fast'"):
+        default_engine()
+    with pytest.raises(ValueError, match="unknown engine 'fast'"):
+        use_engine("fast")
+    with pytest.raises(ValueError, match="unknown engine 'fast'"):
+        make_session(Scenario(), engine="fast")
