@@ -60,6 +60,9 @@ class Effect:
     parameters: tuple = ()
     summary: str = ""
     seen_in_replay: bool = True  # False: it acts only on runs driven by the gait command
+    # False: it changes the chain's masses or the gait command, which the compiled engine's sensitivities
+    # (engine/session.py) do not follow; its derivatives are taken by finite differences of runs.
+    differentiable: bool = True
     failed_joints_only: bool = False  # True: it acts only in failed joints (a trial without one is unchanged)
 
     def configure(self, setup: ModelSetup, values: Dict[str, float]) -> None:
@@ -183,6 +186,7 @@ class ModulePayload(Effect):
     summary = "an extra mass at one module's centre: its inertia, and its wheel's normal force"
     parameters = (EffectParameter("payload_kg", 0.0, 2.0, probe=0.3),
                   EffectParameter("payload_module", 1, 14, fitted=False, default=7))
+    differentiable = False
 
     def configure(self, setup, values):
         module = values["payload_module"]
@@ -196,6 +200,7 @@ class ServoLag(Effect):
     summary = "a first-order servo response of time constant tau to the gait command"
     parameters = (EffectParameter("servo_lag_s", 0.0, 0.5, probe=0.05),)
     seen_in_replay = False  # replays drive the joints by their measured angles
+    differentiable = False
 
     def gait(self, gait, values):
         """A first-order lag 1/(1 + tau s) of the serpenoid command A sin(omega t - phi) + B is, once its
@@ -274,6 +279,25 @@ def parse_effect(text: str) -> tuple:
         return key, float(value)
     except ValueError:
         raise ValueError(f"effect '{name}': '{value}' is not a number") from None
+
+
+def coordinate_owner(name: str) -> Optional[Effect]:
+    """The effect with a fitted parameter or a diagnosis coordinate called `name`, or None."""
+    return next((e for e in LIBRARY.values()
+                 if any(p.key == name for p in (*e.fitted(), *e.coordinate_space()))), None)
+
+
+def shifted(effects: Dict[str, float], name: str, delta: float) -> Dict[str, float]:
+    """`effects` with the fitted parameter or coordinate `name` (coordinate_owner) moved by `delta`."""
+    effect = coordinate_owner(name)
+    if effect is None:
+        raise ValueError(f"no effect parameter or coordinate '{name}'")
+    values = effect_values(effects, effect)
+    if name in values:
+        return {**effects, name: values[name] + delta}
+    coordinates = effect.coordinates(values)
+    coordinates[name] += delta
+    return {**effects, **effect.from_coordinates(coordinates)}
 
 
 def commanded_gait(gait: Gait, effects: Dict[str, float]) -> Gait:

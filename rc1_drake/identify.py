@@ -16,7 +16,7 @@ import numpy as np
 
 from .config import FRICTION_NAMES, Z95, Friction, Rc1Error
 from .engine import default_engine
-from .engine.session import SENSITIVITY_PARAMETERS
+from .engine.session import sensitivity_parameters
 from .executor import make_executor
 
 # The paper's manually tuned starting point (section 4).
@@ -323,19 +323,25 @@ def _replay_residual(trial, friction: Friction, effects=None) -> np.ndarray:
 
 def _replay_residual_and_jacobian(trial, friction: Friction, effects, names) -> tuple:
     """One trial's residuals and their derivatives by the parameters `names` from one replay with exact
-    sensitivities (engine/tangent.py). The residuals are linear in the logged states (interpolated head
-    positions, yaw rates), so shifting the states by one sensitivity column gives its residual column exactly."""
+    sensitivities (engine/tangent.py)."""
     run = _replayer(trial).run(friction, effects, sensitivities=names)
     r = trial_residual(trial, run)
-    columns = [trial_residual(trial, dataclasses.replace(run, state=run.state + run.sensitivity[:, p])) - r
-               for p in range(len(names))]
-    return r, np.column_stack(columns) if columns else np.zeros((len(r), 0))
+    return r, residual_jacobian(trial, run, r)
+
+
+def residual_jacobian(trial, run, residual) -> np.ndarray:
+    """d trial_residual / d parameter (one column per run.sensitivity_names) of a run with sensitivities. The
+    residuals are linear in the logged states (interpolated head positions, yaw rates), so shifting the states
+    by one sensitivity column gives its residual column exactly."""
+    columns = [trial_residual(trial, dataclasses.replace(run, state=run.state + run.sensitivity[:, p])) - residual
+               for p in range(len(run.sensitivity_names))]
+    return np.column_stack(columns) if columns else np.zeros((len(residual), 0))
 
 
 def exact_jacobian_available(names) -> bool:
     """Whether replays can give the residuals' derivatives by `names` exactly (the compiled engine's
     sensitivities), in place of finite-difference columns."""
-    return default_engine() == "compiled" and all(n in SENSITIVITY_PARAMETERS for n in names)
+    return default_engine() == "compiled" and all(n in sensitivity_parameters() for n in names)
 
 
 def _input_noise_covariance(trial, friction: Friction, effects, samples: int, seed: int, length=None) -> np.ndarray:

@@ -1,6 +1,7 @@
 """The tangent kernels (engine/tangent.py) against central differences of the kernels they differentiate."""
 
 import numpy as np
+import pytest
 
 from rc1_drake.engine.dynamics import chain_terms, plant_numbers
 from rc1_drake.engine.tangent import chain_tangent, wheel_local_tangent
@@ -103,48 +104,55 @@ def test_friction_tangent_matches_central_differences_of_the_solve():
         np.testing.assert_allclose(tangent[d], expected, atol=1e-3 * scale, err_msg=f"direction {d}")
 
 
-def _central(simulate, scenario_at, name, h=1e-6):
+def _central(simulate, scenario_at, name):
+    h = 1e-4 if name.endswith("_deg") else 1e-5  # where round-off and truncation balance, measured
     return (simulate(scenario_at(name, h)).state[-1] - simulate(scenario_at(name, -h)).state[-1]) / (2 * h)
 
 
 def test_run_sensitivities_match_central_differences_of_whole_runs():
-    """d final state / d parameter of a 0.3 s joint-7 run with every effect of the friction law switched on
-    (a falling Stribeck law included), and of a 0.6 s replay of the shipped joint-2 trial (stiff servos beyond
-    the plant's effort clamp, a free joint near the head), against central differences of the runs."""
+    """d final state / d parameter of a 0.3 s joint-7 run on a 2 deg slope with every effect of the friction law
+    switched on (a falling Stribeck law included), and of a 0.6 s replay of the shipped joint-2 trial on a level
+    floor (stiff servos beyond the plant's effort clamp, a free joint near the head), against central
+    differences of the runs: every parameter and diagnosis coordinate with a sensitivity."""
     import dataclasses
 
-    from rc1_drake.config import Failure, Scenario, Stop
-    from rc1_drake.engine.session import SENSITIVITY_PARAMETERS, CompiledSession
+    from rc1_drake.config import FRICTION_NAMES, Failure, Scenario, Stop
+    from rc1_drake.effects import shifted
+    from rc1_drake.engine.session import CompiledSession, sensitivity_parameters
     from rc1_drake.measurements import load_trial
     from rc1_drake.replay import Replayer, replay_scenario
 
     effects = {"lateral_friction_asymmetry": 0.1, "longitudinal_friction_asymmetry": -0.1, "stribeck_ratio": 0.3,
                "head_drag_mu": 0.1, "joint_coulomb_Nm": 0.02, "wheel_toe_deg": 0.5}
-    friction_names = ("c_joint", "mu_lat", "mu_long", "c_lat", "c_long")
 
     def varied(scenario, name, h):
-        if name in friction_names:
+        if name in FRICTION_NAMES:
             return dataclasses.replace(scenario, friction=dataclasses.replace(
                 scenario.friction, **{name: getattr(scenario.friction, name) + h}))
-        return dataclasses.replace(scenario, effects={**scenario.effects, name: scenario.effects[name] + h})
+        return dataclasses.replace(scenario, effects=shifted(scenario.effects, name, h))
 
     session = CompiledSession()
-    run_scenario = Scenario(failures=[Failure(joint=7)], stop=Stop(time_limit_s=0.3), effects=effects)
+    run_scenario = Scenario(failures=[Failure(joint=7)], stop=Stop(time_limit_s=0.3),
+                            effects={**effects, "ground_slope_deg": 2.0, "ground_slope_direction_deg": 30.0})
     trial = load_trial("data/paper_campaign/j2_1.json")
     keep = trial.t - trial.t[0] <= 0.6
     trial = dataclasses.replace(trial, t=trial.t[keep], q=trial.q[keep], head_yaw_rate=trial.head_yaw_rate[keep],
                                 camera=trial.camera[keep])
     replayer = Replayer(trial, engine="compiled")
     replay = replay_scenario(trial, run_scenario.friction, effects, replayer.numerics)
-    cases = [(lambda s, **kw: session.simulate(s, **kw), run_scenario),
-             (lambda s, **kw: replayer.session.simulate(s, initial=replayer.initial, **kw), replay)]
-    for simulate, scenario in cases:
-        exact = simulate(scenario, sensitivities=SENSITIVITY_PARAMETERS)
-        assert exact.sensitivity.shape == (len(exact.t), len(SENSITIVITY_PARAMETERS), 32)
-        for p, name in enumerate(SENSITIVITY_PARAMETERS):
+    every = sensitivity_parameters()
+    assert {"mu_lat", "wheel_toe_deg", "ground_slope_x_deg", "ground_slope_direction_deg"} <= set(every)
+    cases = [(lambda s, **kw: session.simulate(s, **kw), run_scenario, every),
+             # on a level floor the slope's direction does nothing
+             (lambda s, **kw: replayer.session.simulate(s, initial=replayer.initial, **kw), replay,
+              [n for n in every if n != "ground_slope_direction_deg"])]
+    for simulate, scenario, names in cases:
+        exact = simulate(scenario, sensitivities=names)
+        assert exact.sensitivity.shape == (len(exact.t), len(names), 32)
+        for p, name in enumerate(names):
             expected = _central(simulate, lambda n, h: varied(scenario, n, h), name)
             scale = np.abs(expected).max()
-            assert scale > 1e-3, name
+            assert scale > 1e-4, name  # not trivially zero
             np.testing.assert_allclose(exact.sensitivity[-1, p], expected, atol=1e-4 * scale, err_msg=name)
 
 
@@ -156,7 +164,45 @@ def test_sensitivities_by_an_unknown_name_or_on_the_drake_engine_are_refused():
     from rc1_drake.protocol import Session
 
     scenario = Scenario(stop=Stop(time_limit_s=0.01))
-    with pytest.raises(ValueError, match="no sensitivity for 'ground_slope_deg'"):
-        CompiledSession().simulate(scenario, sensitivities=["ground_slope_deg"])
+    for name in ("payload_kg", "servo_lag_s", "no_such_parameter"):  # the masses, the gait command; unknown
+        with pytest.raises(ValueError, match=f"no sensitivity for '{name}'"):
+            CompiledSession().simulate(scenario, sensitivities=[name])
     with pytest.raises(Rc1Error, match="need the compiled engine"):
         Session(scenario).simulate(scenario, sensitivities=["mu_lat"])
+
+
+@pytest.mark.parametrize("rule", ["line", "turn"])
+def test_sensitivities_at_a_stop_event_follow_the_moving_stop_time(rule):
+    """A run that stops where the head crosses a line, or where its yaw has turned by 0.06 revolutions: its last
+    sample's sensitivities are those of the state at the event (the stop time moves with the parameter),
+    against central differences of the runs' states interpolated to the event (every step logged)."""
+    import dataclasses
+
+    from rc1_drake.config import Numerics, Scenario, Stop
+    from rc1_drake.engine.session import CompiledSession
+
+    stop = Stop(line_x_m=0.2, time_limit_s=1.0) if rule == "line" else Stop(revolutions=0.06, time_limit_s=1.0)
+    coordinate = 0 if rule == "line" else 2
+    scenario = Scenario(stop=stop, numerics=Numerics(log_period_s=0.0), effects={"wheel_toe_deg": 0.5})
+    session = CompiledSession()
+
+    def at_event(s):
+        run = session.simulate(s)
+        assert run.stop_reason == ("crossed" if rule == "line" else "circling")
+        before, after = run.state[-2], run.state[-1]
+        threshold = 0.2 if rule == "line" else run.state[0, 2] + np.sign(after[2] - run.state[0, 2]) * 0.12 * np.pi
+        return before + (threshold - before[coordinate]) / (after[coordinate] - before[coordinate]) * (after - before)
+
+    names = ["mu_lat", "c_long", "wheel_toe_deg"]
+    exact = session.simulate(scenario, sensitivities=names).sensitivity[-1]
+    for p, name in enumerate(names):
+        h = 1e-4 if name.endswith("_deg") else 1e-5
+        if name.endswith("_deg"):
+            up, down = ({**scenario.effects, name: scenario.effects[name] + d} for d in (h, -h))
+            up, down = (dataclasses.replace(scenario, effects=e) for e in (up, down))
+        else:
+            up, down = (dataclasses.replace(scenario, friction=dataclasses.replace(
+                scenario.friction, **{name: getattr(scenario.friction, name) + d})) for d in (h, -h))
+        expected = (at_event(up) - at_event(down))[:16] / (2 * h)
+        assert abs(expected[coordinate]) < 1e-6 * np.abs(expected).max()  # the stop rule's coordinate is fixed
+        np.testing.assert_allclose(exact[p, :16], expected, atol=1e-3 * np.abs(expected).max(), err_msg=name)

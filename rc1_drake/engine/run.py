@@ -79,9 +79,9 @@ def _heading_gain(x, heading, z_heading):
 
 
 @jit
-def _sensitivity_step(x, x_next, v_star, force_plus, command, sens, sens_z, sens_zh, dparams, z_heading, dt, params,
-                      power, servo_gains, gains, heading, mass, yaw_inertia, com, gravity_xy, in_plane, effort, lower,
-                      upper, locked, joint_in_parent, joint_in_child, wheel_module, wheel_offset, wheel_toe):
+def _sensitivity_step(x, x_next, v_star, force_plus, command, sens, sens_z, sens_zh, dparams, dgravity, z_heading, dt,
+                      params, power, servo_gains, gains, heading, mass, yaw_inertia, com, gravity_xy, in_plane, effort,
+                      lower, upper, locked, joint_in_parent, joint_in_child, wheel_module, wheel_offset, wheel_toe):
     """Carry the sensitivities through one step (tangent.step_tangent), the PID's command and integrators, and
     the heading controller (the serpenoid's and the replay reference's time terms do not depend on parameters)."""
     nq = x.shape[0] // 2
@@ -92,8 +92,8 @@ def _sensitivity_step(x, x_next, v_star, force_plus, command, sens, sens_z, sens
     for d in range(num):
         dtheta = kp_h * (weights @ sens[d, :nq]) + ki_h * sens_zh[d]
         dcommand[d] = gains[1] * sens_z[d] + gains[0] * (dtheta - sens[d, 3:nq]) - gains[2] * sens[d, nq + 3:]
-    new = step_tangent(x, force_plus, v_star, x_next[nq:], sens, dparams, dcommand, dt, params, command, power,
-                       servo_gains, mass, yaw_inertia, com, gravity_xy, in_plane, effort, lower, upper, locked,
+    new = step_tangent(x, force_plus, v_star, x_next[nq:], sens, dparams, dgravity, dcommand, dt, params, command,
+                       power, servo_gains, mass, yaw_inertia, com, gravity_xy, in_plane, effort, lower, upper, locked,
                        joint_in_parent, joint_in_child, wheel_module, wheel_offset, wheel_toe)
     kp_n, ki_n = _heading_gain(x_next, heading, z_heading)
     for d in range(num):
@@ -107,7 +107,7 @@ def _sensitivity_step(x, x_next, v_star, force_plus, command, sens, sens_z, sens
 def advance_run(x, z_pid, z_heading, segment, k0, k1, t_first, dt, extra_force, params, power, locked,
                 log_steps, log_times, log_next, last_torque, log_state, log_torque, source, gait, heading, breaks,
                 values, rates, gains, stop, model, mass, yaw_inertia, com, effort, lower, upper, joint_in_parent,
-                joint_in_child, wheel_module, wheel_offset, wheel_toe, sens, sens_z, sens_zh, dparams, log_sens):
+                joint_in_child, wheel_module, wheel_offset, wheel_toe, sens, sens_z, sens_zh, dparams, dgravity, log_sens):
     """Take the updates k0 <= k < k1 in place on the carried state (x, z_pid, z_heading, segment, log_next,
     last_torque); returns (status, k) with k the index of the state x now holds. Failures change params,
     power and locked between calls (session.py), as the failure switch does between AdvanceTo calls.
@@ -116,7 +116,8 @@ def advance_run(x, z_pid, z_heading, segment, k0, k1, t_first, dt, extra_force, 
     stop: [line x (nan: none), yaw turn (inf: none), yaw_0]; model: [gravity x, y, in plane (0/1)];
     t_first (nan: k0 dt) is the time of the first update (the Simulator's time at a stop between steps).
     Forward sensitivities (P directions, P may be 0): sens (P, 32), sens_z (P, 13) and sens_zh (P,) carry
-    d(x, z_pid, z_heading) along the parameter directions dparams (P, len(params)); log_sens (rows, P, 32).
+    d(x, z_pid, z_heading) along the parameter directions dparams (P, len(params)) and dgravity (P, 2: gravity's
+    floor components); log_sens (rows, P, 32).
     """
     nq = x.shape[0] // 2
     gravity_xy = model[0] + 1j * model[1]
@@ -150,10 +151,10 @@ def advance_run(x, z_pid, z_heading, segment, k0, k1, t_first, dt, extra_force, 
         # The plant updates its state before the controllers update theirs (an unrestricted update comes
         # first in Drake's Simulator), so the integrators see x_{k+1} and the command's time t_k.
         if sens.shape[0]:
-            _sensitivity_step(x, x_next, v_star, force_plus, command, sens, sens_z, sens_zh, dparams, z_heading, dt,
-                              params, power, servo_gains, gains, heading, mass, yaw_inertia, com, gravity_xy, in_plane,
-                              effort, lower, upper, locked, joint_in_parent, joint_in_child, wheel_module,
-                              wheel_offset, wheel_toe)
+            _sensitivity_step(x, x_next, v_star, force_plus, command, sens, sens_z, sens_zh, dparams, dgravity,
+                              z_heading, dt, params, power, servo_gains, gains, heading, mass, yaw_inertia, com,
+                              gravity_xy, in_plane, effort, lower, upper, locked, joint_in_parent, joint_in_child,
+                              wheel_module, wheel_offset, wheel_toe)
         theta, _, error = _command(t, x_next, source, gait, heading, z_heading, breaks, values, rates, segment)
         z_pid += dt * (theta - x_next[3:nq])
         z_heading[0] += dt * error

@@ -12,9 +12,8 @@ import time
 
 import numpy as np
 
-from ..config import NUM_JOINTS, Rc1Error, Scenario
-from ..effects import commanded_gait, model_setup
-from .. import friction as fr
+from ..config import FRICTION_NAMES, NUM_JOINTS, Rc1Error, Scenario
+from ..effects import LIBRARY, commanded_gait, coordinate_owner, effect_values, model_setup, shifted
 from ..friction import FAILED, FREE, LOCKED, friction_parameters
 from ..gait import serpenoid_parameters
 from ..diagram import build_key
@@ -23,6 +22,7 @@ from .dynamics import plant_numbers
 from .run import CIRCLING, CROSSED, NOT_FINITE, REFERENCE, SERPENOID, advance_run
 
 _REASON = {CROSSED: "crossed", CIRCLING: "circling"}
+_EVENT_COORDINATE = {CROSSED: 0, CIRCLING: 2}  # the stop rule's state: the head's x, its yaw
 _WARNED = set()
 
 
@@ -107,7 +107,7 @@ class CompiledSession:
 
     def simulate(self, scenario: Scenario, *, initial=None, sensitivities=()) -> Run:
         """Run `scenario` (from `initial`, a plant state, if given), as protocol.Session.simulate does; with
-        `sensitivities` (names of SENSITIVITY_PARAMETERS) the Run also carries d state / d parameter."""
+        `sensitivities` (names of sensitivity_parameters()) the Run also carries d state / d parameter."""
         setup = model_setup(scenario.effects)
         if setup.extra_forces:
             if sensitivities:
@@ -140,6 +140,8 @@ class CompiledSession:
             state = np.vstack([state, run.x])
             torque = np.vstack([torque, run.probe(k, t_stop, logs=False)])
             sensitivity = np.concatenate([sensitivity, run.sens[None]])
+        if run.names and status in _EVENT_COORDINATE:
+            sensitivity[-1] = run.at_event(k, t_stop, sensitivity[-1], _EVENT_COORDINATE[status])
         return Run(scenario=scenario, t=t, state=state, servo_torque=torque,
                    stop_reason=_REASON.get(status, "timed_out"), wall_time_s=wall, geometry=self.geometry,
                    sensitivity=sensitivity if run.names else None, sensitivity_names=run.names)
@@ -194,8 +196,7 @@ class _CompiledRun:
         self.log_next, self.last_torque = np.zeros(1, dtype=np.int64), np.zeros(NUM_JOINTS)
         self.log_t, self.log_steps = _log_schedule(scenario.numerics.log_period_s, scenario.stop.time_limit_s, self.dt)
         self.names = names
-        self.dparams = np.array([sensitivity_direction(name, len(self.params)) for name in names]).reshape(
-            len(names), len(self.params))
+        self.dparams, self.dgravity = sensitivity_directions(scenario, names, len(self.params))
         self.sens, self.sens_z, self.sens_zh = np.zeros((len(names), 32)), np.zeros((len(names), NUM_JOINTS)), \
             np.zeros(len(names))
         self.log_sens = np.zeros((len(self.log_steps), len(names), 32))
@@ -203,7 +204,7 @@ class _CompiledRun:
         self.log_torque = np.zeros((len(self.log_steps), NUM_JOINTS))
         source, gait, heading, knots = session._source(scenario)
         stop = scenario.stop
-        stop_row = np.array([np.nan if stop.line_x_m is None else stop.line_x_m,
+        self.stop_row = stop_row = np.array([np.nan if stop.line_x_m is None else stop.line_x_m,
                              np.inf if stop.revolutions is None else 2 * math.pi * stop.revolutions, x[2]])
         gravity = setup.gravity
         model = np.array([gravity[0], gravity[1], float(bool(gravity[0] or gravity[1]))])
@@ -219,7 +220,7 @@ class _CompiledRun:
         x, z, zh, seg, params, power, locked, log_next, last, sens, sens_z, sens_zh = carried or self._carried()
         return advance_run(x, z, zh, seg, k0, k1, t_first, self.dt, np.zeros(16), params, power, locked,
                            self.log_steps, self.log_t, log_next, last, *self.constant, sens, sens_z, sens_zh,
-                           self.dparams, self.log_sens)
+                           self.dparams, self.dgravity, self.log_sens)
 
     def _carried(self) -> list:
         return [self.x, self.z, self.z_heading, self.segment, self.params, self.power, self.locked, self.log_next,
@@ -239,30 +240,73 @@ class _CompiledRun:
             self.log_next[0] = copy[7][0]
         return copy[8]
 
+    def at_event(self, k: int, t: float, sens, coordinate: int):
+        """The sensitivities `sens` (P, 32) at the step k that ended the run by a stop rule (x[coordinate]
+        reaching its threshold), turned into those of the state at the event itself, so that they follow the
+        stop time as it moves with a parameter: S(t*) - xdot S_c(t*) / xdot_c, with S(t*) taken back from the
+        step's end to the crossing along dS/dt and xdot, dS/dt from a probe of the next step."""
+        carried = [np.array(c, copy=True) for c in self._carried()]
+        carried[7][0] = len(self.log_steps)
+        self.advance(k, k + 1, t, carried=carried)
+        x_dot = np.concatenate([self.x[16:], (carried[0][16:] - self.x[16:]) / self.dt])
+        if coordinate == 0:
+            past = self.x[0] - self.stop_row[0]
+        else:
+            turned = self.x[2] - self.stop_row[2]
+            past = turned - math.copysign(self.stop_row[1], turned)
+        at = sens - past / x_dot[coordinate] * (carried[9] - sens) / self.dt
+        return at - np.outer(at[:, coordinate] / x_dot[coordinate], x_dot)
+
     def logs(self) -> tuple:
         rows = int(self.log_next[0])
         return (self.log_t[:rows].copy(), self.log_state[:rows].copy(), self.log_torque[:rows].copy(),
                 self.log_sens[:rows].copy())
 
 
-# The parameters a run can be differentiated by, and where each sits in the friction parameter vector.
-_SENSITIVITY_INDEX = {"c_joint": fr.C_JOINT, "mu_lat": fr.MU_LAT, "mu_long": fr.MU_LONG, "c_lat": fr.C_LAT,
-                      "c_long": fr.C_LONG, "lateral_friction_asymmetry": fr.SHAPE.start,
-                      "longitudinal_friction_asymmetry": fr.SHAPE.start + 1, "stribeck_ratio": fr.SHAPE.start + 2,
-                      "head_drag_mu": fr.HEAD_MU, "joint_coulomb_Nm": fr.JOINT_COULOMB}
-SENSITIVITY_PARAMETERS = (*_SENSITIVITY_INDEX, "wheel_toe_deg")  # the toe: every wheel's, in degrees
+def sensitivity_parameters() -> tuple:
+    """The names a run can be differentiated by: the friction coefficients, and the fitted parameters and
+    diagnosis coordinates of every differentiable effect (effects.Effect.differentiable)."""
+    names = list(FRICTION_NAMES)
+    for effect in LIBRARY.values():
+        if effect.differentiable:
+            names += [p.key for p in (*effect.fitted(), *effect.coordinate_space()) if p.key not in names]
+    return tuple(names)
 
 
-def sensitivity_direction(name: str, size: int) -> np.ndarray:
-    """The change of the friction parameter vector (friction.py's layout) per unit of parameter `name`."""
-    direction = np.zeros(size)
-    if name == "wheel_toe_deg":
-        direction[fr.toe_slice((size - fr.PER_WHEEL) // 2)] = math.pi / 180.0
-    elif name in _SENSITIVITY_INDEX:
-        direction[_SENSITIVITY_INDEX[name]] = 1.0
-    else:
-        raise ValueError(f"no sensitivity for '{name}' (known: {', '.join(SENSITIVITY_PARAMETERS)})")
-    return direction
+def sensitivity_directions(scenario: Scenario, names, size: int) -> tuple:
+    """Per name, the change of the friction parameter vector (friction.py's layout) and of gravity's floor
+    components per unit of it: central differences of the pure maps effects.model_setup and
+    friction.friction_parameters (linear in all but the slope, whose error is ~1e-10). The tangent model
+    (tangent.py) carries them through the run."""
+    known = sensitivity_parameters()
+    dparams, dgravity = np.zeros((len(names), size)), np.zeros((len(names), 2))
+    base = model_setup(scenario.effects)
+    for d, name in enumerate(names):
+        if name not in known:
+            raise ValueError(f"no sensitivity for '{name}' (known: {', '.join(known)})")
+        h = 1e-5 * max(1.0, abs(_value(scenario, name)))
+        for sign in (1.0, -1.0):
+            friction, effects = scenario.friction, scenario.effects
+            if name in FRICTION_NAMES:
+                friction = dataclasses.replace(friction, **{name: getattr(friction, name) + sign * h})
+            else:
+                effects = shifted(effects, name, sign * h)
+            setup = model_setup(effects)
+            if (setup.payload_module, setup.payload_kg) != (base.payload_module, base.payload_kg) or setup.extra_forces:
+                raise ValueError(f"no sensitivity for '{name}': it changes the masses or adds a Python force")
+            params = friction_parameters(friction=friction, sgn_smoothing_m_s=scenario.numerics.sgn_smoothing_m_s,
+                                         setup=setup, geometry=plant_numbers().geometry)
+            dparams[d] += sign * params / (2 * h)
+            dgravity[d] += sign * setup.gravity[:2] / (2 * h)
+    return dparams, dgravity
+
+
+def _value(scenario: Scenario, name: str) -> float:
+    if name in FRICTION_NAMES:
+        return getattr(scenario.friction, name)
+    effect = coordinate_owner(name)
+    values = effect_values(scenario.effects, effect)
+    return values[name] if name in values else effect.coordinates(values)[name]
 
 
 def _log_schedule(period: float, t_end: float, dt: float) -> tuple:

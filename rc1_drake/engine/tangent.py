@@ -225,22 +225,26 @@ def _rows(w, num):
 
 
 @jit
-def step_tangent(x, force_plus, v_star, v_new, S, dparams, dcommand, dt, params, servo_command, servo_power,
+def step_tangent(x, force_plus, v_star, v_new, S, dparams, dgravity, dcommand, dt, params, servo_command, servo_power,
                  servo_gains, mass, yaw_inertia, com, gravity_xy, in_plane, effort, lower, upper, locked,
                  joint_in_parent, joint_in_child, wheel_module, wheel_offset, wheel_toe):
-    """d x_{k+1} (P, 32) of step.py's plant_step along state directions S (P, 32), parameter directions dparams and
-    command directions dcommand, given the step's forces and velocities: the friction solve's v+ = v + dt M^-1
-    force_plus, v* (the free motion) and v_new (after locked joints and limits). Each stage is differentiated as
-    it is computed (step.py)."""
+    """d x_{k+1} (P, 32) of step.py's plant_step along state directions S (P, 32), parameter directions dparams,
+    gravity's floor components dgravity (P, 2) and command directions dcommand, given the step's forces and
+    velocities: the friction solve's v+ = v + dt M^-1 force_plus, v* (the free motion) and v_new (after locked
+    joints and limits). Each stage is differentiated as it is computed (step.py)."""
     nv = x.shape[0] // 2
     num = S.shape[0]
     v = x[nv:]
     M, bias, gravity = chain_terms(x, mass, yaw_inertia, com, joint_in_parent, joint_in_child, gravity_xy)
     v_plus = v + dt * spd_solve(M, force_plus)
     other = -bias + (gravity if in_plane else np.zeros(nv))
-    mw, dbias, dgravity = chain_tangent(x, S, _rows(v_plus - v, num), mass, yaw_inertia, com, joint_in_parent,
+    mw, dbias, dgravity_x = chain_tangent(x, S, _rows(v_plus - v, num), mass, yaw_inertia, com, joint_in_parent,
                                         joint_in_child, gravity_xy)
-    dother = -dbias + (dgravity if in_plane else np.zeros_like(dbias))
+    dother = -dbias + (dgravity_x if in_plane else np.zeros_like(dbias))
+    for d in range(num):
+        if dgravity[d, 0] != 0.0 or dgravity[d, 1] != 0.0:  # the generalized gravity force is linear in the field
+            dother[d] += chain_terms(x, mass, yaw_inertia, com, joint_in_parent, joint_in_child,
+                                     dgravity[d, 0] + 1j * dgravity[d, 1])[2]
     dv = friction_tangent(x, S, dparams, dcommand, dother, mw, v_plus, M, other, dt, params, servo_command,
                           servo_power, servo_gains, joint_in_parent, joint_in_child, wheel_module, wheel_offset,
                           wheel_toe)
