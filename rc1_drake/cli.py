@@ -95,6 +95,13 @@ def make_parser() -> argparse.ArgumentParser:
                           "repeatable")
     syn.add_argument("--noise-scale", type=_float, default=1.0, metavar="S", help="multiply every sensor noise by S")
     syn.add_argument("--no-camera", action="store_true", help="leave out the overhead camera columns")
+    syn.add_argument("--truth-model", choices=["drake", "reference"], default="drake",
+                     help="drake: this project's Diagram through its servos; reference: the independent planar model "
+                          "of reference.py (kinematic joints, its own limit model, the head at rest at its start; "
+                          "effects: wheel_toe only)")
+    syn.add_argument("--sample-period-s", type=_float, default=0.01, metavar="DT", help="the sensors' sample period")
+    syn.add_argument("--record-after-s", type=_float, default=0.0, metavar="T",
+                     help="start the recording T s after the robot started (the data then begin in motion)")
     syn.add_argument("--seed", type=int, default=0)
     syn.add_argument("--truth", type=Path, metavar="PATH", help="where to record the truth (JSON)")
 
@@ -324,7 +331,8 @@ def cmd_synthesize(args) -> int:
     validate(Scenario(effects=effects, stop=stop or Stop()), where="command line")
     campaign = synthesize_campaign(args.out, design=design, friction=friction, effects=effects,
                                    noise=Noise().scaled(args.noise_scale), camera=not args.no_camera, seed=args.seed,
-                                   truth_file=args.truth, stop=stop)
+                                   truth_file=args.truth, stop=stop, truth_model=args.truth_model,
+                                   sample_period_s=args.sample_period_s, record_after_s=args.record_after_s)
     print(f"wrote {len(campaign.trials)} trials to {args.out}" + (f"; truth in {args.truth}" if args.truth else ""))
     return 0
 
@@ -342,11 +350,20 @@ def model_from_args(overrides: dict, model_file=None) -> tuple:
     return friction, model.effects
 
 
-def cmd_compare(args) -> int:
-    from .compare import compare_campaign
+def loaded_campaign(folder):
+    """measurements.load_campaign, with its warnings (once per joint) on stderr."""
     from .measurements import load_campaign
 
-    campaign = load_campaign(args.campaign)
+    campaign = load_campaign(folder)
+    for line in campaign.warnings():
+        print(f"warning: {folder}: {line}", file=sys.stderr)
+    return campaign
+
+
+def cmd_compare(args) -> int:
+    from .compare import compare_campaign
+
+    campaign = loaded_campaign(args.campaign)
     friction, effects = model_from_args(dict(args.friction), args.model_file)
     effects = {**effects, **dict(args.effect)}
     validate(Scenario(effects=effects), where="command line")
@@ -453,12 +470,11 @@ def cmd_identify(args) -> int:
     from .identify import (DEFAULT_PARAMETERS, PAPER_MANUAL, avs_figure, friction_to_yaml, held_out_errors,
                            identify_avs, identify_equation_error, identify_program, seeded_start,
                            split_trials)
-    from .measurements import load_campaign
 
     def ids(text):
         return None if not text else [t.strip() for t in text.split(",") if t.strip()]
 
-    campaign = load_campaign(args.campaign)
+    campaign = loaded_campaign(args.campaign)
     trials = ids(args.trials)
     estimation, validation = split_trials(campaign, trials=trials, validation=ids(args.validation))
     parameters = [dataclasses.replace(p, frozen=p.name in args.freeze) for p in DEFAULT_PARAMETERS]
@@ -561,10 +577,9 @@ def cmd_diagnose(args) -> int:
     import matplotlib.pyplot as plt
 
     from .diagnose import diagnose
-    from .measurements import load_campaign
     from .plots import candidates_figure, waterfall_figure
 
-    campaign = load_campaign(args.campaign)
+    campaign = loaded_campaign(args.campaign)
     model = load_model_file(args.model_file) if args.model_file else ModelFile(friction=Friction())
     trials = None if not args.trials else [t.strip() for t in args.trials.split(",") if t.strip()]
     started = time.perf_counter()

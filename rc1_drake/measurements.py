@@ -11,7 +11,7 @@ import json
 import math
 import os
 from pathlib import Path
-from typing import List, Optional
+from typing import Dict, List, Optional
 
 import numpy as np
 
@@ -28,6 +28,11 @@ POSE_KEYS = ("x_m", "y_m", "yaw_rad")
 # Tolerances of the checks (documented in data/README.md).
 JOINT_TOLERANCE_DEG = 3.0  # measured joint angles may exceed +-38 deg by this much (noise, linkage play)
 DEGREES_HINT_RAD = 1.5  # a joint angle above this (86 deg) in a _rad column is taken for degrees
+# A joint's sample-to-sample change above JUMP_TOLERANCE_DEG + JUMP_SPEED_FACTOR x the servo's top speed
+# (140 deg/s, paper Sec. 2) x the step is no motion of the joint: a glitch or a swapped column.
+SERVO_SPEED_DEG_S = 140.0
+JUMP_SPEED_FACTOR = 3.0
+JUMP_TOLERANCE_DEG = 5.0
 YAW_RATE_HINT_RAD_S = 30.0  # a head yaw rate above this in rad/s is taken for deg/s
 SAMPLING_TOLERANCE = 0.01  # every time step within 1% of the median step
 
@@ -55,6 +60,9 @@ class Trial:
     camera: Optional[np.ndarray] = None  # (N, 3) x_m, y_m, yaw_rad; NaN where the camera missed the head
     notes: str = ""
     source: Optional[Path] = None  # the JSON file it came from
+    # joint (1-based) -> its largest reading (deg, signed) where it passes the limit and the tolerance: a
+    # measurement to explain (a potentiometer's offset or gain error), loaded with a warning
+    beyond_limit: Dict[int, float] = dataclasses.field(default_factory=dict)
 
     @property
     def case(self) -> str:
@@ -78,6 +86,23 @@ class Campaign:
         for trial in self.trials:
             out.setdefault(trial.case, []).append(trial)
         return out
+
+    def warnings(self) -> List[str]:
+        """What the loader took in but the model cannot do, once per joint: readings past the joint limit."""
+        return limit_warnings(self.trials)
+
+
+def limit_warnings(trials) -> List[str]:
+    """One line per joint whose readings pass its limit (Trial.beyond_limit) in any of `trials`."""
+    lines = []
+    for joint in range(1, NUM_JOINTS + 1):
+        seen = [(t.trial_id, t.beyond_limit[joint]) for t in trials if joint in t.beyond_limit]
+        if seen:
+            peak = max((v for _, v in seen), key=abs)
+            lines.append(f"joint {joint}'s potentiometer reads up to {peak:+.1f} deg, past the +-{JOINT_LIMIT_DEG:g} deg "
+                         f"limit, in {len(seen)} trial(s) ({', '.join(i for i, _ in seen[:3])}"
+                         f"{', ...' if len(seen) > 3 else ''}): an offset or gain error? Loaded as measured")
+    return lines
 
 
 def _fail(path, where, problem):
@@ -207,7 +232,9 @@ def _load_csv(path: Path, failed_joints) -> dict:
         bad = int(np.flatnonzero(uneven)[0]) + 3
         _fail(path, f"line {bad}, column t_s", f"not evenly sampled (step {steps[bad - 3]:.6g} s, usual {median:.6g} s)")
     limit = math.radians(JOINT_LIMIT_DEG + JOINT_TOLERANCE_DEG)
+    jump = math.radians(JUMP_TOLERANCE_DEG + JUMP_SPEED_FACTOR * SERVO_SPEED_DEG_S * median)
     q = np.full((len(t), NUM_JOINTS), np.nan)
+    beyond = {}
     for j, name in enumerate(JOINT_COLUMNS, start=1):
         data = col[name]
         if j in failed_joints:
@@ -221,9 +248,14 @@ def _load_csv(path: Path, failed_joints) -> dict:
         line = int(np.argmax(np.abs(data))) + 2
         if peak > DEGREES_HINT_RAD:
             _fail(path, f"line {line}, column {name}", f"{data[line - 2]:g} looks like degrees, the column is in radians")
+        steps = np.abs(np.diff(data))
+        if steps.max() > jump:
+            at = int(np.argmax(steps)) + 3
+            _fail(path, f"line {at}, column {name}",
+                  f"jumps by {math.degrees(steps[at - 3]):.1f} deg in one sample, more than a servo can move "
+                  f"({math.degrees(jump):.1f} deg at {SERVO_SPEED_DEG_S:g} deg/s)")
         if peak > limit:
-            _fail(path, f"line {line}, column {name}",
-                  f"{math.degrees(data[line - 2]):.1f} deg is beyond the +-{JOINT_LIMIT_DEG:g} deg joint limit")
+            beyond[j] = math.degrees(data[line - 2])
         q[:, j - 1] = data
     rate = col["head_yaw_rate_rad_s"]
     if np.abs(rate).max() > YAW_RATE_HINT_RAD_S:
@@ -235,7 +267,7 @@ def _load_csv(path: Path, failed_joints) -> dict:
         partial = np.isnan(cam).any(axis=1) & ~np.isnan(cam).all(axis=1)
         if partial.any():
             _fail(path, f"line {int(np.flatnonzero(partial)[0]) + 2}", "camera cells are empty together or not at all")
-    return dict(t=t, q=q, head_yaw_rate=rate, camera=cam)
+    return dict(t=t, q=q, head_yaw_rate=rate, camera=cam, beyond_limit=beyond)
 
 
 def load_trial(json_path) -> Trial:

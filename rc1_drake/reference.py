@@ -19,6 +19,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
+from typing import Optional
 
 import numpy as np
 from scipy.integrate import solve_ivp
@@ -41,6 +42,8 @@ class ReferenceRun:
     q: np.ndarray  # (N, 13)
     crossed: bool
     wall_time_s: float
+    circled: bool = False  # stopped where the head's yaw had turned by the stop's revolutions
+    z_dot: Optional[np.ndarray] = None  # (N, 16) rates of (x, y, yaw of the head, q_1..q_13)
 
 
 class PlanarSnake:
@@ -103,14 +106,14 @@ class PlanarSnake:
         h = np.concatenate([np.zeros((1, 2)), np.cumsum(steps, axis=0)])
         return mass_matrix, -np.einsum("k,kai,ka->i", self.mass, jac, h)
 
-    def wheel_force(self, z, zd, friction, eps):
-        """Generalized force of Eqs. 4-5 on all wheels."""
+    def wheel_force(self, z, zd, friction, eps, toe_rad=0.0):
+        """Generalized force of Eqs. 4-5 on all wheels (each turned by toe_rad, counter-clockwise)."""
         phi, centres, joints = self.frames(z)
         m = self.wheel_module
         points = centres[m] + self._rot(phi[m], self.wheel_offset)
         jac = self.point_jacobian(points, m, centres, joints)
         vel = jac @ zd
-        heading = phi[m] + self.wheel_yaw
+        heading = phi[m] + self.wheel_yaw + toe_rad
         t = np.stack([np.cos(heading), np.sin(heading)], axis=-1)
         n = np.stack([-t[:, 1], t[:, 0]], axis=-1)
         v_long = (vel * t).sum(axis=1)
@@ -123,11 +126,15 @@ class PlanarSnake:
         return np.einsum("pai,pa->i", jac, forces)
 
 
-def simulate_reference(scenario: Scenario, geometry, *, joint_path=None, rtol=1e-7, atol=1e-9) -> ReferenceRun:
+def simulate_reference(scenario: Scenario, geometry, *, joint_path=None, rtol=1e-7, atol=1e-9, at_rest="centre",
+                       t_eval=None, toe_rad=0.0) -> ReferenceRun:
     """Integrate the scenario with the working joints prescribed; stops at the line or time limit.
 
     The working joints follow the serpenoid of the scenario's gait, or, if joint_path = (t, q) is
     given (q: (N, 13) rad), a cubic spline through those samples (e.g. the angles a servo achieved).
+    At t = 0 the mean module yaw does not turn and the body's centre of mass (at_rest="centre", the protocol's
+    start) or the head (at_rest="head") is at rest. `t_eval`: the output times (the solver's own by default; a
+    line crossing is appended as the last sample); toe_rad: every wheel turned by it (the wheel_toe effect).
     """
     if any(f.time_s != 0.0 or f.mode != "free" for f in scenario.failures):
         raise ValueError("the reference model handles joints that are free from t = 0 only")
@@ -163,7 +170,7 @@ def simulate_reference(scenario: Scenario, geometry, *, joint_path=None, rtol=1e
     def rhs(t, y):
         z, zd, qdd = full(t, y)
         mass_matrix, velocity_force = snake.dynamics_terms(z, zd)
-        force = velocity_force + snake.wheel_force(z, zd, scenario.friction, eps)
+        force = velocity_force + snake.wheel_force(z, zd, scenario.friction, eps, toe_rad)
         qf, qfd = z[3 + failed], zd[3 + failed]
         over = np.abs(qf) - LIMIT_RAD
         stop = np.where(over > 0, -np.sign(qf) * STOP_GAIN * over - STOP_DAMPING * qfd, 0.0)
@@ -180,9 +187,11 @@ def simulate_reference(scenario: Scenario, geometry, *, joint_path=None, rtol=1e
     z0 = np.concatenate([[scenario.start.x_m, scenario.start.y_m, math.radians(scenario.start.heading_deg) - rel.mean()], q0])
     zd0 = np.concatenate([[0.0, 0.0, -reld.mean()], qd0])
     _, centres, joints = snake.frames(z0)
-    jac = snake.point_jacobian(centres, np.arange(snake.n), centres, joints)
-    com_velocity = np.einsum("k,kai,i->a", snake.mass, jac, zd0) / snake.mass.sum()
-    zd0[0:2] -= com_velocity
+    if at_rest == "centre":
+        jac = snake.point_jacobian(centres, np.arange(snake.n), centres, joints)
+        zd0[0:2] -= np.einsum("k,kai,i->a", snake.mass, jac, zd0) / snake.mass.sum()
+    elif at_rest != "head":
+        raise ValueError(f"at_rest must be 'centre' or 'head', got {at_rest!r}")
     y0 = np.concatenate([z0[free], zd0[free]])
 
     events = []
@@ -192,12 +201,26 @@ def simulate_reference(scenario: Scenario, geometry, *, joint_path=None, rtol=1e
             return y[0] - line
         crossed.terminal, crossed.direction = True, 1
         events.append(crossed)
+    if scenario.stop.revolutions is not None:  # the head's yaw has turned by the revolutions, either way
+        turn, yaw0 = 2 * math.pi * scenario.stop.revolutions, y0[2]
+
+        def circled(t, y):
+            return abs(y[2] - yaw0) - turn
+        circled.terminal, circled.direction = True, 1
+        events.append(circled)
     start = time.perf_counter()
     sol = solve_ivp(rhs, (0.0, scenario.stop.time_limit_s), y0, method="LSODA", rtol=rtol, atol=atol,
-                    events=events, dense_output=False, max_step=0.01)
+                    events=events, dense_output=False, max_step=0.01, t_eval=t_eval)
     wall = time.perf_counter() - start
     if not sol.success:
         raise RuntimeError(f"reference integration failed: {sol.message}")
-    zs = np.array([full(t, y)[0] for t, y in zip(sol.t, sol.y.T, strict=True)])
-    return ReferenceRun(t=sol.t, head_xy=zs[:, 0:2], head_yaw=zs[:, 2], q=zs[:, 3:],
-                        crossed=bool(events and len(sol.t_events[0])), wall_time_s=wall)
+    fired = [k for k, e in enumerate(sol.t_events or []) if len(e)]
+    crossed = bool(fired) and events[fired[0]].__name__ == "crossed"
+    times, states = sol.t, sol.y.T
+    if fired and t_eval is not None:
+        times = np.append(times, sol.t_events[fired[0]][0])
+        states = np.vstack([states, sol.y_events[fired[0]][0]])
+    motion = [full(t, y)[:2] for t, y in zip(times, states, strict=True)]
+    zs, zds = np.array([m[0] for m in motion]), np.array([m[1] for m in motion])
+    return ReferenceRun(t=times, head_xy=zs[:, 0:2], head_yaw=zs[:, 2], q=zs[:, 3:], crossed=crossed,
+                        wall_time_s=wall, z_dot=zds, circled=bool(fired) and not crossed)

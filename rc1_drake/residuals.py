@@ -16,6 +16,7 @@ from typing import Dict, List, Optional
 import numpy as np
 
 from .kinematics import wheel_kinematics
+from .measurements import limit_warnings
 
 FEATURES = ("heading_sin", "heading_cos", "lateral_slip", "gait_phase_sin", "gait_phase_cos", "failed_joint_angle")
 ERROR_THRESHOLD_M = 0.02
@@ -89,12 +90,15 @@ class WhereItFails:
     trials: List[TrialResiduals]  # worst Eq. 6 error first
     cases: Dict[str, float]  # case -> mean Eq. 6 error, worst first
     pooled: Dict[str, List[float]]  # feature -> [r, p] over every trial's yaw-rate residual
+    measurement: List[str] = dataclasses.field(default_factory=list)  # what the data do that the model cannot
 
     def to_json(self) -> dict:
-        return {"trials": [dataclasses.asdict(t) for t in self.trials], "cases": self.cases, "pooled": self.pooled}
+        return {"trials": [dataclasses.asdict(t) for t in self.trials], "cases": self.cases, "pooled": self.pooled,
+                "measurement": self.measurement}
 
     def table(self) -> str:
-        lines = [f"{'trial':<22}{'case':<10}{'Eq.6 %':>8}{'path rms cm':>12}{'grows cm/s':>11}{'>2 cm at s':>11}"
+        lines = [f"measurement: {m}" for m in self.measurement]
+        lines += [f"{'trial':<22}{'case':<10}{'Eq.6 %':>8}{'path rms cm':>12}{'grows cm/s':>11}{'>2 cm at s':>11}"
                  f"{'LB p':>8}  strongest feature"]
         def cm(v, scale=100):
             return "-" if v is None else f"{scale * v:.1f}"
@@ -142,4 +146,5 @@ def where_it_fails(report, campaign) -> WhereItFails:
         if ok.sum() > 10:
             pooled[f] = list(correlation(y[ok], x[ok]))
     return WhereItFails(trials=rows, cases=dict(sorted(((c, float(np.mean(v))) for c, v in cases.items()),
-                                                      key=lambda kv: -kv[1])), pooled=pooled)
+                                                      key=lambda kv: -kv[1])), pooled=pooled,
+                        measurement=limit_warnings([by_id[r.trial_id] for r in report.trials]))

@@ -14,7 +14,7 @@ from typing import List, Optional
 
 import numpy as np
 
-from .config import Failure, Friction, Gait, Numerics, Rc1Error, Scenario, Start, Stop
+from .config import NUM_JOINTS, Failure, Friction, Gait, Numerics, Rc1Error, Scenario, Start, Stop
 from .diagram import build_key
 from .measurements import Campaign, Stop as TrialStop, Trial, write_trial
 from .engine import make_session
@@ -70,12 +70,29 @@ SERVO_SPEED_LIMIT_DEG_S = 140.0  # HiTec HS5645MG (paper section 2; models/rc1.s
 DESIGNS = {"paper": PAPER_DESIGN, "identification": IDENTIFICATION_DESIGN}
 
 
+TRUTH_MODELS = ("drake", "reference")
+REFERENCE_EFFECTS = ("wheel_toe_deg",)  # what the independent model can express
+
+
 def synthesize_campaign(folder, *, design=PAPER_DESIGN, friction=None, effects=None, noise=None, variation=None,
                         seed=0, camera=True, stop=None, sample_period_s=0.01, numerics=None, truth_file=None,
-                        name=None) -> Campaign:
+                        name=None, truth_model="drake", record_after_s=0.0) -> Campaign:
     """Write a campaign to `folder` and, if `truth_file` is given, what made it. Unset arguments take
     their defaults: the paper's friction, no effect, Noise(), Variation(), Stop(). `effects` maps
-    effect parameter keys to values (effects.py)."""
+    effect parameter keys to values (effects.py).
+
+    truth_model "drake": the Drake model driven by the gait through its servos, from the protocol's start;
+    "reference": the independent planar model of reference.py (kinematic joints as the paper drives them,
+    its own joint-limit model, the head at rest at its start), a model this project's replay was not made
+    from. record_after_s: the recording starts that long after the robot did (the data then start in motion)."""
+    if truth_model not in TRUTH_MODELS:
+        raise Rc1Error(f"synthesize: truth model must be one of {', '.join(TRUTH_MODELS)}, got {truth_model!r}")
+    if truth_model == "reference" and set(effects or {}) - set(REFERENCE_EFFECTS):
+        raise Rc1Error(f"synthesize: the reference truth model can express {', '.join(REFERENCE_EFFECTS)} only, "
+                       f"not {', '.join(sorted(set(effects) - set(REFERENCE_EFFECTS)))}")
+    if record_after_s < 0 or abs(record_after_s / sample_period_s - round(record_after_s / sample_period_s)) > 1e-9:
+        raise Rc1Error(f"synthesize: record_after_s must be a non-negative multiple of the sample period, "
+                       f"got {record_after_s}")
     friction, effects = friction or Friction(), dict(effects or {})
     noise, variation, stop = noise or Noise(), variation or Variation(), stop or Stop()
     rng = np.random.default_rng(seed)
@@ -96,10 +113,10 @@ def synthesize_campaign(folder, *, design=PAPER_DESIGN, friction=None, effects=N
                 start=Start(x_m=float(rng.normal(0, variation.position_m)), y_m=float(rng.normal(0, variation.position_m)),
                             heading_deg=float(rng.normal(0, variation.heading_deg))),
                 stop=stop, numerics=numerics)
-            key = build_key(scenario)
-            if key not in sessions:
-                sessions[key] = make_session(scenario)
-            run = sessions[key].simulate(scenario)
+            if truth_model == "reference":
+                run, scenario = _reference_run(scenario, record_after_s, sample_period_s)
+            else:
+                run, scenario = _drake_run(scenario, record_after_s, sessions)
             trial = _measure(run, scenario, f"{label}_{k + 1}", noise, rng, camera, sample_period_s)
             write_trial(folder, trial.trial_id, trial)
             trials.append(trial)
@@ -109,10 +126,59 @@ def synthesize_campaign(folder, *, design=PAPER_DESIGN, friction=None, effects=N
             "friction": dataclasses.asdict(friction), "effects": effects,
             "noise": dataclasses.asdict(noise), "variation": dataclasses.asdict(variation),
             "design": [dataclasses.asdict(c) for c in design],
-            "numerics": dataclasses.asdict(numerics),
+            "numerics": dataclasses.asdict(numerics), "truth_model": truth_model, "record_after_s": record_after_s,
         }
         Path(truth_file).write_text(json.dumps(truth, indent=2) + "\n")
     return Campaign(path=folder, trials=trials)
+
+
+def _recorded(scenario: Scenario, record_after_s: float) -> Scenario:
+    """The scenario as the trial records it when the recording starts record_after_s into the motion: the
+    gait's wave advanced by that time (Eq. 3: omega (t + t_r) - phi)."""
+    gait = scenario.gait
+    offset = (gait.phase_offset_deg + gait.frequency_deg_s * record_after_s + 180.0) % 360.0 - 180.0
+    return dataclasses.replace(scenario, gait=dataclasses.replace(gait, phase_offset_deg=offset))
+
+
+def _late(scenario: Scenario, record_after_s: float) -> Scenario:
+    return dataclasses.replace(scenario, stop=dataclasses.replace(
+        scenario.stop, time_limit_s=scenario.stop.time_limit_s + record_after_s))
+
+
+def _drake_run(scenario: Scenario, record_after_s: float, sessions: dict) -> tuple:
+    """The Drake truth's run, from the recording's start, and the scenario the trial records."""
+    late = _late(scenario, record_after_s)
+    key = build_key(late)
+    if key not in sessions:
+        sessions[key] = make_session(late)
+    run = sessions[key].simulate(late)
+    keep = run.t >= record_after_s - 1e-9
+    run = dataclasses.replace(run, t=run.t[keep] - record_after_s, state=run.state[keep],
+                              servo_torque=run.servo_torque[keep])
+    return run, _recorded(scenario, record_after_s)
+
+
+def _reference_run(scenario: Scenario, record_after_s: float, period: float) -> tuple:
+    """The reference truth's run (reference.simulate_reference from the head at rest, sampled every `period`
+    from the recording's start), as a Run, and the scenario the trial records."""
+    from .engine.dynamics import plant_numbers
+    from .protocol import Run
+    from .reference import simulate_reference
+
+    late = _late(scenario, record_after_s)
+    end = late.stop.time_limit_s
+    grid = record_after_s + np.arange(int(math.floor((end - record_after_s) / period + 1e-9)) + 1) * period
+    geometry = plant_numbers().geometry
+    ref = simulate_reference(late, geometry, at_rest="head", t_eval=grid,
+                             toe_rad=math.radians(scenario.effects.get("wheel_toe_deg", 0.0)))
+    keep = ref.t >= record_after_s - 1e-9
+    z = np.column_stack([ref.head_xy, ref.head_yaw, ref.q])
+    state = np.hstack([z, ref.z_dot])[keep]
+    reason = "crossed" if ref.crossed else "circling" if ref.circled else "timed_out"
+    run = Run(scenario=scenario, t=ref.t[keep] - record_after_s, state=state,
+              servo_torque=np.zeros((len(state), NUM_JOINTS)), stop_reason=reason, wall_time_s=ref.wall_time_s,
+              geometry=geometry)
+    return run, _recorded(scenario, record_after_s)
 
 
 def noise_free_twin(trial: Trial, *, friction: Friction, effects=None) -> Trial:
