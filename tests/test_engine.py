@@ -138,8 +138,11 @@ def test_replays_of_shipped_trials_agree(stem):
     assert_equivalent(drake, compiled.run(friction, {"wheel_toe_deg": 1.0}))
 
 
-def test_an_effect_with_a_python_force_runs_on_the_drake_engine_and_says_so(capsys):
+def test_an_effect_with_a_python_force_runs_on_the_drake_engine_and_says_so(capsys, monkeypatch):
     from rc1_drake import effects as fx
+    from rc1_drake.engine import session as engine_session
+
+    monkeypatch.setattr(engine_session, "_WARNED", set())  # the note is said once per process
 
     class Push(fx.Effect):
         name = "test_engine_push"
