@@ -115,6 +115,9 @@ def make_parser() -> argparse.ArgumentParser:
                      help="add a physical effect to the model (see rc1 effects); repeatable")
     cmp.add_argument("--json", type=Path, metavar="PATH", help="write every per-trial and per-case number")
     cmp.add_argument("--plots", type=Path, metavar="DIR", help="write figures in the paper's styles")
+    cmp.add_argument("--start", choices=["rest", "fit"], default="rest",
+                     help="the head's rates at t = 0: rest (the synthetic campaigns' convention: centre of mass at "
+                          "rest, mean axis not turning) or fit (to the trial's first 0.5 s of camera and IMU)")
     cmp.add_argument("--workers", type=_positive_int, metavar="N", help="processes (default: every core)")
 
     swp = sub.add_parser("sweep", help="fail each joint in turn (and none), several trials each")
@@ -371,7 +374,8 @@ def cmd_compare(args) -> int:
     def progress(done, total, trial_id):
         print(f"\r  replayed {done}/{total} trials ({trial_id})", end="", file=sys.stderr, flush=True)
 
-    report = compare_campaign(campaign, friction, effects=effects or None, workers=args.workers, progress=progress)
+    report = compare_campaign(campaign, friction, effects=effects or None, workers=args.workers, progress=progress,
+                              start=args.start)
     print(file=sys.stderr)
     print(f"Simulator error (paper Eq. 6) per trial, {campaign.path}:")
     print(report.table())

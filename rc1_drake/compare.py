@@ -143,24 +143,33 @@ def score_trial(trial: Trial, run) -> TrialResult:
     )
 
 
-def _replay_and_score(trial: Trial, friction, effects, numerics):
-    run = Replayer(trial, numerics).run(friction, effects)
+START_MODES = ("rest", "fit")
+
+
+def _replay_and_score(trial: Trial, friction, effects, numerics, start="rest"):
+    replayer = Replayer(trial, numerics)
+    if start == "fit":
+        replayer.fit_start(friction, effects)
+    run = replayer.run(friction, effects)
     return score_trial(trial, run), run
 
 
 def compare_campaign(campaign: Campaign, friction: Optional[Friction] = None, effects=None, numerics=None,
-                     workers: Optional[int] = None, progress=None) -> CampaignReport:
+                     workers: Optional[int] = None, progress=None, start="rest") -> CampaignReport:
     """Replay every trial with `friction` (and `effects`) and score it; trials run in parallel on
-    `workers` processes (default: every core), each building its own Diagram."""
+    `workers` processes (default: every core), each building its own Diagram. start: "rest" (the protocol's
+    convention for the head's rates at t = 0) or "fit" (from the trial's first 0.5 s, start.py)."""
+    if start not in START_MODES:
+        raise ValueError(f"start must be one of {START_MODES}, got {start!r}")
     workers = min(workers or os.cpu_count() or 1, len(campaign.trials))
     friction = friction or Friction()
     trials = campaign.trials
     with contextlib.ExitStack() as stack:
         if workers == 1:
-            results = (_replay_and_score(t, friction, effects, numerics) for t in trials)
+            results = (_replay_and_score(t, friction, effects, numerics, start) for t in trials)
         else:
             pool = stack.enter_context(make_executor(workers=workers))
-            results = (f.result() for f in [pool.submit(_replay_and_score, t, friction, effects, numerics)
+            results = (f.result() for f in [pool.submit(_replay_and_score, t, friction, effects, numerics, start)
                                              for t in trials])
         outputs = []
         for k, (trial, output) in enumerate(zip(trials, results, strict=True)):

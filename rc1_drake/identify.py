@@ -14,7 +14,7 @@ from typing import Dict, List, Optional
 
 import numpy as np
 
-from .config import FRICTION_NAMES, Z95, Friction, Rc1Error
+from .config import FRICTION_NAMES, RESIDUAL_SIGMAS, Z95, Friction, Rc1Error
 from .engine import default_engine
 from .engine.session import sensitivity_parameters
 from .executor import make_executor
@@ -269,7 +269,6 @@ def avs_figure(result: AvsResult):
 
 # Residual weights: roughly the measurement noise of each channel (data/README.md), so the residual
 # vector is standardized and its Jacobian gives a Fisher information.
-RESIDUAL_SIGMAS = {"final_m": 0.01, "yaw_rate_rad_s": 0.05, "camera_m": 0.01}
 RESIDUAL_PERIOD_S = 0.1
 FINAL_CHANNEL, PATH_CHANNEL = 0, 1  # the final position (by hand); the camera path or yaw rate over time
 

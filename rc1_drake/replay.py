@@ -22,6 +22,7 @@ from .measurements import Trial
 from .engine import make_session
 from .protocol import Run, rest_state
 from .smoothing import smoothed_samples
+from .start import StartEstimate, fit_start
 
 # Stiff tracking in place of the paper's kinematic joints. Servo and wheel friction are solved implicitly
 # together (friction.FrictionForces); trials replay alike at 0.25 and 0.5 ms (Eq. 6 within 0.25%). 1 ms
@@ -31,11 +32,14 @@ from .smoothing import smoothed_samples
 # with the model, and an uncapped servo then jams the chain (seen on a joint-2 failure).
 REPLAY_SERVO = Servo(kp_Nm_per_rad=300.0, ki_Nm_per_rad_s=0.0, kd_Nm_s_per_rad=1.0, torque_limit_Nm=3.0)
 REPLAY_NUMERICS = Numerics(time_step_s=5e-4)
+# A trial stopped by a line or a turn ends its data at the last sample before the event: its replay may run
+# this many sample periods past the data (the joints held at their last reference) to reach the event.
+EVENT_GRACE_SAMPLES = 3
 
 
 @dataclasses.dataclass
 class JointReference:
-    t: np.ndarray  # sample times, from 0
+    t: np.ndarray  # sample times, from 0, and one knot EVENT_GRACE_SAMPLES past the last
     q: np.ndarray  # (N, 13) smoothed angles (failed joints: 0, unused)
     q_dot: np.ndarray  # (N, 13)
     noise_rad: float  # the potentiometers' noise the smoothing finds (smoothed_samples), pooled over the joints
@@ -56,16 +60,22 @@ def joint_reference(trial: Trial, measured_q=None) -> JointReference:
     for j in trial.working_joints:
         q[:, j - 1], q_dot[:, j - 1], variance = smoothed_samples(t, measured[:, j - 1])
         variances.append(variance)
+    # Past the data (EVENT_GRACE_SAMPLES, to reach a stop event) the joints go on at their last rates; a knot
+    # there makes both engines follow the same continuation.
+    grace = EVENT_GRACE_SAMPLES * float(np.median(np.diff(t)))
+    t = np.append(t, t[-1] + grace)
+    q, q_dot = np.vstack([q, q[-1] + grace * q_dot[-1]]), np.vstack([q_dot, q_dot[-1]])
     return JointReference(t=t, q=q, q_dot=q_dot, noise_rad=float(np.sqrt(np.mean(variances))) if variances else 0.0)
 
 
 def replay_scenario(trial: Trial, friction: Friction, effects=None, numerics=None) -> Scenario:
     """The scenario of a replay: the trial's failures and stop rule, the given friction (and effects)."""
     end = float(trial.t[-1] - trial.t[0])
+    grace = EVENT_GRACE_SAMPLES * float(np.median(np.diff(trial.t)))
     if trial.stop.type == "line":
-        stop = Stop(line_x_m=trial.stop.value, revolutions=None, time_limit_s=end)
+        stop = Stop(line_x_m=trial.stop.value, revolutions=None, time_limit_s=end + grace)
     elif trial.stop.type == "revolutions":
-        stop = Stop(line_x_m=None, revolutions=trial.stop.value, time_limit_s=end)
+        stop = Stop(line_x_m=None, revolutions=trial.stop.value, time_limit_s=end + grace)
     else:
         stop = Stop(line_x_m=None, revolutions=None, time_limit_s=min(trial.stop.value, end))
     x, y, _ = trial.initial_head_pose
@@ -77,7 +87,8 @@ def replay_scenario(trial: Trial, friction: Friction, effects=None, numerics=Non
 
 def replay_initial_state(trial: Trial, reference: JointReference, geometry) -> np.ndarray:
     """The trial's initial head pose; working joints at their smoothed first sample, failed joints at
-    the commanded serpenoid (the start configuration); the body otherwise at rest."""
+    the commanded serpenoid (the start configuration); the head's rates from protocol.rest_state (the
+    synthetic campaigns' convention; Replayer.fit_start takes them from the data instead)."""
     q, q_dot = serpenoid(0.0, trial.gait)
     working = [j - 1 for j in trial.working_joints]
     q[working] = reference.q[0, working]
@@ -96,6 +107,17 @@ class Replayer:
         base = replay_scenario(trial, Friction(), numerics=self.numerics)
         self.session = make_session(base, engine=engine, joint_reference=self.reference)
         self.initial = replay_initial_state(trial, self.reference, self.session.geometry)
+        self.start = None  # StartEstimate once fit_start has run
+
+    def fit_start(self, friction: Friction, effects=None) -> StartEstimate:
+        """Replay from the head rates that the trial's first measurements give at this model (start.py) in
+        place of the protocol's convention; on the compiled engine (its exact sensitivities), for both."""
+        scenario = replay_scenario(self.trial, friction, effects, self.numerics)
+        fitter = self.session if self.session.engine == "compiled" else make_session(
+            scenario, engine="compiled", joint_reference=self.reference)
+        self.start = fit_start(self.trial, fitter, scenario, self.initial)
+        self.initial[16:19] = self.start.head_rates
+        return self.start
 
     def run(self, friction: Friction, effects=None, *, sensitivities=()) -> Run:
         """The replay; with `sensitivities` (names, compiled engine) also d state / d parameter (Run.sensitivity)."""
@@ -124,6 +146,8 @@ class Replayer:
         self.session.set_joint_reference(reference)
         try:
             initial = replay_initial_state(self.trial, reference, self.session.geometry)
+            if self.start is not None:
+                initial[16:19] = self.start.head_rates
             return self.session.simulate(replay_scenario(self.trial, friction, effects, self.numerics), initial=initial)
         finally:
             self.session.set_joint_reference(self.reference)

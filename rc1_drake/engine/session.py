@@ -196,8 +196,8 @@ class _CompiledRun:
         self.log_next, self.last_torque = np.zeros(1, dtype=np.int64), np.zeros(NUM_JOINTS)
         self.log_t, self.log_steps = _log_schedule(scenario.numerics.log_period_s, scenario.stop.time_limit_s, self.dt)
         self.names = names
-        self.dparams, self.dgravity = sensitivity_directions(scenario, names, len(self.params))
-        self.sens, self.sens_z, self.sens_zh = np.zeros((len(names), 32)), np.zeros((len(names), NUM_JOINTS)), \
+        self.dparams, self.dgravity, seeds = sensitivity_directions(scenario, names, len(self.params))
+        self.sens, self.sens_z, self.sens_zh = seeds, np.zeros((len(names), NUM_JOINTS)), \
             np.zeros(len(names))
         self.log_sens = np.zeros((len(self.log_steps), len(names), 32))
         self.log_state = np.zeros((len(self.log_steps), 32))
@@ -263,10 +263,15 @@ class _CompiledRun:
                 self.log_sens[:rows].copy())
 
 
+# The start state's head rates (a replay's start from the data, start.py): d state / d x0 along these entries.
+START_RATES = {"start_head_vx_m_s": 16, "start_head_vy_m_s": 17, "start_head_yaw_rate_rad_s": 18}
+
+
 def sensitivity_parameters() -> tuple:
-    """The names a run can be differentiated by: the friction coefficients, and the fitted parameters and
-    diagnosis coordinates of every differentiable effect (effects.Effect.differentiable)."""
-    names = list(FRICTION_NAMES)
+    """The names a run can be differentiated by: the friction coefficients, the fitted parameters and
+    diagnosis coordinates of every differentiable effect (effects.Effect.differentiable), and the start's
+    head rates (START_RATES)."""
+    names = [*FRICTION_NAMES, *START_RATES]
     for effect in LIBRARY.values():
         if effect.differentiable:
             names += [p.key for p in (*effect.fitted(), *effect.coordinate_space()) if p.key not in names]
@@ -276,14 +281,18 @@ def sensitivity_parameters() -> tuple:
 def sensitivity_directions(scenario: Scenario, names, size: int) -> tuple:
     """Per name, the change of the friction parameter vector (friction.py's layout) and of gravity's floor
     components per unit of it: central differences of the pure maps effects.model_setup and
-    friction.friction_parameters (linear in all but the slope, whose error is ~1e-10). The tangent model
-    (tangent.py) carries them through the run."""
+    friction.friction_parameters (linear in all but the slope, whose error is ~1e-10); and the start state's
+    change (the seeds of the sensitivities: a unit head rate for START_RATES). The tangent model (tangent.py)
+    carries them through the run."""
     known = sensitivity_parameters()
-    dparams, dgravity = np.zeros((len(names), size)), np.zeros((len(names), 2))
+    dparams, dgravity, seeds = np.zeros((len(names), size)), np.zeros((len(names), 2)), np.zeros((len(names), 32))
     base = model_setup(scenario.effects)
     for d, name in enumerate(names):
         if name not in known:
             raise ValueError(f"no sensitivity for '{name}' (known: {', '.join(known)})")
+        if name in START_RATES:
+            seeds[d, START_RATES[name]] = 1.0
+            continue
         h = 1e-5 * max(1.0, abs(_value(scenario, name)))
         for sign in (1.0, -1.0):
             friction, effects = scenario.friction, scenario.effects
@@ -298,7 +307,7 @@ def sensitivity_directions(scenario: Scenario, names, size: int) -> tuple:
                                          setup=setup, geometry=plant_numbers().geometry)
             dparams[d] += sign * params / (2 * h)
             dgravity[d] += sign * setup.gravity[:2] / (2 * h)
-    return dparams, dgravity
+    return dparams, dgravity, seeds
 
 
 def _value(scenario: Scenario, name: str) -> float:
