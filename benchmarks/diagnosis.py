@@ -2,6 +2,7 @@
 
     python benchmarks/diagnosis.py [--seeds 3] [--time-limit-s 3] [--workers 2] [--effects NAME,...]
                                    [--strengths 0.5,1,1.5] [--hold-friction] [--design none,J7x2]
+                                   [--truth-model drake|reference] [--record-after-s 0]
                                    [--out benchmarks/out/diagnosis.jsonl]
 
 For every effect the replays can see, campaigns of its design (the trials that make it visible: a
@@ -12,9 +13,12 @@ asymmetry; --design for all) are synthesized with the effect hidden at each stre
 campaigns with no hidden effect, on every design used, measure false alarms. A row per campaign streams
 to --out (rerunning resumes); the table gives, per effect and strength, how often it was accepted,
 ranked first, recovered inside its 95% interval, how often another effect was accepted instead, and
-how often the best candidate explained only part of the held-out error (not accepted).
+how often the best candidate explained only part of the held-out error (not accepted), and how often the
+verdict was the whole right answer (effect_found with the hidden effect alone; no_missing_effect without one).
 --hold-friction holds the friction at the truth, as the tests do (short trials identify no friction
-coefficient).
+coefficient). --truth-model reference makes the campaigns with the independent model (reference.py: kinematic
+joints, the head at rest at its start, its own limit model; of the library it expresses the wheel toe only),
+--record-after-s starts their recording after the robot did: data this project's model did not make.
 """
 
 import argparse
@@ -28,7 +32,7 @@ from rc1_drake.config import FRICTION_NAMES, Friction, Gait, Stop, Z95
 from rc1_drake.diagnose import diagnose
 from rc1_drake.effects import LIBRARY, effect_values, parameter
 from rc1_drake.measurements import load_campaign
-from rc1_drake.synthesize import Case, synthesize_campaign
+from rc1_drake.synthesize import REFERENCE_EFFECTS, TRUTH_MODELS, Case, synthesize_campaign
 
 DESIGN = "none,J7x2"
 
@@ -66,10 +70,12 @@ REFERENCE = {  # a clearly visible strength on DESIGN's 3 s trials (diagnose.pro
 }
 
 
-def one(effect, strength, seed, seconds, workers, held=(), design=DESIGN) -> dict:
+def one(effect, strength, seed, seconds, workers, held=(), design=DESIGN, truth_model="drake",
+        record_after_s=0.0) -> dict:
     effects = {} if effect is None else {REFERENCE[effect][0]: REFERENCE[effect][1] * strength}
     with tempfile.TemporaryDirectory() as tmp:
-        synthesize_campaign(tmp, design=parse_design(design), effects=effects, seed=seed,
+        synthesize_campaign(tmp, design=parse_design(design), effects=effects, seed=seed, truth_model=truth_model,
+                            record_after_s=record_after_s,
                             stop=Stop(line_x_m=None, revolutions=None, time_limit_s=seconds))
         campaign = load_campaign(tmp)
         start = time.perf_counter()
@@ -81,7 +87,8 @@ def one(effect, strength, seed, seconds, workers, held=(), design=DESIGN) -> dic
         estimate = {k: result.final_coordinates[k] for k in truth if k in result.final_coordinates} or None
         if estimate:
             inside = all(abs(v - truth[k]) <= Z95 * se for k, (v, se) in estimate.items())
-    return {"effect": effect, "strength": strength, "seed": seed, "design": design, "verdict": result.verdict,
+    return {"effect": effect, "strength": strength, "seed": seed, "design": design, "truth_model": truth_model,
+            "record_after_s": record_after_s, "verdict": result.verdict,
             "accepted": result.accepted, "first": first.name if first else None, "inside_interval": inside,
             "estimate": estimate,
             "first_round": [[c.name, c.status, c.coordinates, (c.simulated or {}).get("held_out_reduction")]
@@ -101,18 +108,28 @@ def main():
     parser.add_argument("--hold-friction", action="store_true", help="hold the friction at the truth (as the tests)")
     parser.add_argument("--design", help="the trials of every campaign, e.g. none,none@70,noneb4,J7x2,J13 (default: "
                         f"{DESIGN}, or the effect's own: {DESIGNS})")
+    parser.add_argument("--truth-model", choices=TRUTH_MODELS, default="drake",
+                        help="what makes the campaigns (default: drake, this project's model)")
+    parser.add_argument("--record-after-s", type=float, default=0.0, help="the recording starts this late")
     parser.add_argument("--out", type=Path, default=Path("benchmarks/out/diagnosis.jsonl"))
     args = parser.parse_args()
+    made = (args.truth_model, args.record_after_s)
     args.out.parent.mkdir(parents=True, exist_ok=True)
     done = {}
     if args.out.exists():
         for line in args.out.read_text().splitlines():
             row = json.loads(line)
-            done[(row["effect"], row["strength"], row["seed"], row.get("design", DESIGN))] = row
+            if (row.get("truth_model", "drake"), row.get("record_after_s", 0.0)) == made:  # a study per truth
+                done[(row["effect"], row["strength"], row["seed"], row.get("design", DESIGN))] = row
     effects = args.effects.split(",")
     unknown = [e for e in effects if e not in REFERENCE]
     if unknown:
         raise SystemExit(f"--effects: unknown effect {unknown[0]!r} (known: {', '.join(REFERENCE)})")
+    if args.truth_model == "reference":
+        inexpressible = [e for e in effects if REFERENCE[e][0] not in REFERENCE_EFFECTS]
+        if inexpressible:
+            raise SystemExit(f"--effects: the reference model cannot make {inexpressible[0]!r} (it makes: "
+                             f"{', '.join(e for e in REFERENCE if REFERENCE[e][0] in REFERENCE_EFFECTS)})")
     try:
         strengths = [float(k) for k in args.strengths.split(",")]
     except ValueError:
@@ -135,14 +152,15 @@ def main():
             continue
         effect, strength, seed, design = job
         row = one(effect, strength, seed, args.time_limit_s, args.workers,
-                  FRICTION_NAMES if args.hold_friction else (), design)
+                  FRICTION_NAMES if args.hold_friction else (), design, *made)
         done[job] = row
         with args.out.open("a") as f:
             f.write(json.dumps(row) + "\n")
         print(f"[{n + 1}/{len(jobs)}] {effect or 'no effect'} x{strength:g} seed {seed} ({design}): "
               f"{row['verdict']}, accepted {row['accepted']}, first {row['first']}, {row['wall_s']:.0f} s", flush=True)
-    print(f"\n{'hidden effect':<34}{'design':>11}{'strength':>9}{'accepted':>10}{'first':>7}{'in CI':>7}{'wrong':>7}"
-          f"{'partial':>9}{'mean s':>8}")
+    print(f"\ncampaigns made by {args.truth_model}" + (f", recorded {args.record_after_s:g} s late" if args.record_after_s else ""))
+    print(f"{'hidden effect':<34}{'design':>11}{'strength':>9}{'accepted':>10}{'first':>7}{'in CI':>7}{'wrong':>7}"
+          f"{'partial':>9}{'right':>7}{'mean s':>8}")
     groups = {}
     for (effect, strength, _, design), row in done.items():
         groups.setdefault((effect, strength, design), []).append(row)
@@ -153,8 +171,10 @@ def main():
         inside = sum(bool(r["inside_interval"]) for r in rows) if effect else 0
         wrong = sum(any(a != effect for a in r["accepted"]) for r in rows)
         partial = sum(bool(r.get("partial")) for r in rows)
+        right = sum(r["verdict"] == ("effect_found" if effect else "no_missing_effect")
+                    and set(r["accepted"]) == ({effect} if effect else set()) for r in rows)  # the whole answer
         print(f"{effect or 'none (false alarms)':<34}{design:>11}{strength:>9g}{hit:>7}/{n}{first:>5}/{n}"
-              f"{inside:>5}/{n}{wrong:>5}/{n}{partial:>7}/{n}{sum(r['wall_s'] for r in rows) / n:>8.0f}")
+              f"{inside:>5}/{n}{wrong:>5}/{n}{partial:>7}/{n}{right:>5}/{n}{sum(r['wall_s'] for r in rows) / n:>8.0f}")
 
 
 if __name__ == "__main__":

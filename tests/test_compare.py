@@ -115,3 +115,16 @@ def test_a_trial_recorded_in_motion_replays_closer_from_its_fitted_start(tmp_pat
     assert all(f.eq6_error_pct < r.eq6_error_pct for f, r in zip(fit.trials, rest.trials))
     with pytest.raises(ValueError, match="start must be one of"):
         compare_campaign(campaign, start="moving")
+
+
+@pytest.mark.parametrize("period_s, camera", [(0.05, False), (0.002, True)])
+def test_campaigns_by_another_model_replay_at_20_to_500_hz_with_or_without_a_camera(tmp_path, period_s, camera):
+    """reference.py's campaigns (kinematic joints, the head at rest at its start) sampled at 20 Hz with no camera
+    and at 500 Hz: the replay follows their angles and ends where they did (measured, 4 trials: 1.9% and 1.1%)."""
+    synthesize_campaign(tmp_path / "foreign", design=[Case([], 1), Case([7], 1)], seed=4, truth_model="reference",
+                        sample_period_s=period_s, camera=camera, stop=SHORT)
+    campaign = load_campaign(tmp_path / "foreign")
+    assert all((t.camera is not None) == camera for t in campaign.trials)
+    report = compare_campaign(campaign, workers=1)
+    assert report.mean_eq6_error_pct < 3.0
+    assert all(r.tracking_rms_deg < 0.5 for r in report.trials)
