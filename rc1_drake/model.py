@@ -37,6 +37,12 @@ def add_rc1_plant(builder, *, time_step: float, model_path=MODEL_PATH) -> RC1Pla
         MultibodyPlantConfig(time_step=time_step, discrete_contact_approximation="sap"), builder
     )
     (instance,) = Parser(plant).AddModels(str(model_path))
+    # The SDF's effort limit is the servos' power (servo.py clamps their torque at it, or at a replay's own
+    # cap); a plant clamp too would silently cut a replay's stiffer servos to RC1's 1.19 N m.
+    actuators = [plant.get_joint_actuator(a) for a in plant.GetJointActuatorIndices()]
+    effort = np.array([a.effort_limit() for a in actuators])
+    for actuator in actuators:
+        actuator.set_effort_limit(np.inf)
     head = plant.GetBodyByName("module_1", instance)
     base = plant.AddJoint(PlanarJoint("base", plant.world_frame(), head.body_frame(), np.zeros(3)))
     plant.Finalize()
@@ -45,7 +51,6 @@ def add_rc1_plant(builder, *, time_step: float, model_path=MODEL_PATH) -> RC1Pla
     # The kinematics kernels assume this coordinate order; fail loudly if Drake ever changes it.
     assert base.position_start() == 0 and base.velocity_start() == 0
     assert [j.position_start() for j in joints] == list(range(3, 3 + NUM_JOINTS))
-    effort = np.array([plant.get_joint_actuator(a).effort_limit() for a in plant.GetJointActuatorIndices()])
     return RC1Plant(
         plant=plant,
         scene_graph=scene_graph,

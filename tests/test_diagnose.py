@@ -243,9 +243,6 @@ def _diagnose(campaign, **kwargs):
     return dg.diagnose(campaign, friction=Friction(), held=FRICTION_NAMES, workers=2, probe_study=False, **kwargs)
 
 
-# A joint-2 failure circles and drags its head sideways; on the design above a head drag looks like a
-# longitudinal asymmetry or a failed joint's dry friction (test_look_alikes_...).
-CIRCLING = [Case([], 1), Case([2], 2)]
 # A wheel's lateral friction asymmetry is flat at 0 on the design above (Coulomb sticking: README) and a toe
 # or a tilt explains what it does to straight gaits; turning left and right (a 4 deg bias on every joint,
 # Eq. 7), the body slides outward to opposite sides, so the asymmetry changes the two turns differently.
@@ -254,22 +251,17 @@ TURNING = [Case([], 2), Case([], 1, bias_deg=4.0), Case([], 1, bias_deg=-4.0)]
 
 # A failed joint's dry friction has a threshold (README): 3 s trials, where 2 s ones tie it with a longitudinal
 # asymmetry. It is accepted at 0.40 (two trust steps) and estimated further once accepted (0.60 +- 0.05 (se)).
-# A longitudinal asymmetry at 0.5 is not significant on these trials (2 s, 4 s: README); at 0.8 on 3 s trials
-# it is found (0.80 +- 0.11 (se); a 1.3 head drag its rival, 83% / 83% linear, clearly behind when simulated).
 # A lateral asymmetry needs the turning trials; at 0.5 on them it is ranked first but ties with a toe or a head
 # drag (README: `ambiguous` on seeds 0-2), at 0.8 it is found (0.81 +- 0.02 (se); head drag 39% linear).
-# raw_eq6_falls: False for the head drag, measured: the joint-2 replays' own miss of the final position grows
-# with the drag (their bias, 5 cm at 0.45), so their raw Eq. 6 error rises (6 -> 15%), while with the
-# replay's miss taken off it falls by half (16 -> 7%), as do the held-out standardized residuals.
+# (A head drag on circling joint-2 trials was found here while the plant clamped the replays' servos at
+# 1.19 N m; with replays that follow the measured angles it is not detectable at 0.5-1.0 on 2-3 s trials.)
 @pytest.mark.slow
-@pytest.mark.parametrize("effect, key, value, design, seed, seconds, raw_eq6_falls", [
-    ("wheel_toe", "wheel_toe_deg", 1.5, DESIGN, 11, SECONDS, True),
-    ("head_drag", "head_drag_mu", 0.5, CIRCLING, 1, SECONDS, False),
-    ("joint_coulomb_friction", "joint_coulomb_Nm", 0.6, DESIGN, 0, 3.0, True),
-    ("longitudinal_friction_asymmetry", "longitudinal_friction_asymmetry", 0.8, DESIGN, 0, 3.0, True),
-    ("lateral_friction_asymmetry", "lateral_friction_asymmetry", 0.8, TURNING, 0, 3.0, True)])
+@pytest.mark.parametrize("effect, key, value, design, seed, seconds", [
+    ("wheel_toe", "wheel_toe_deg", 1.5, DESIGN, 11, SECONDS),
+    ("joint_coulomb_friction", "joint_coulomb_Nm", 0.6, DESIGN, 0, 3.0),
+    ("lateral_friction_asymmetry", "lateral_friction_asymmetry", 0.8, TURNING, 0, 3.0)])
 def test_a_visible_hidden_effect_is_ranked_first_accepted_and_recovered(tmp_path, effect, key, value, design, seed,
-                                                                        seconds, raw_eq6_falls):
+                                                                        seconds):
     result = _diagnose(_campaign(tmp_path, {key: value}, seed=seed, design=design, seconds=seconds))
     first = result.candidates[0]
     assert first.name == effect and first.accepted, result.rounds[0].table()
@@ -284,23 +276,24 @@ def test_a_visible_hidden_effect_is_ranked_first_accepted_and_recovered(tmp_path
     assert first.simulated["held_out_sum_of_squares_after"] <= 0.5 * first.simulated["held_out_sum_of_squares_before"]
     # Eq. 6 of a 2 s trial has a floor: the hand's 1 cm (mean |error| 1.25 cm in the plane) over ~0.4 m.
     floor = np.mean([100 * 0.0125 / np.linalg.norm(t.final_head_xy - t.initial_head_pose[:2]) for t in result._trials])
-    for eq6 in ["mean_eq6_without_replay_miss_pct"] + (["mean_eq6_error_pct"] if raw_eq6_falls else []):
+    for eq6 in ("mean_eq6_without_replay_miss_pct", "mean_eq6_error_pct"):
         after, before = result.waterfall[-1][eq6], result.waterfall[-2][eq6]
         assert after - floor <= 0.5 * (before - floor), (eq6, before, after, floor)  # the error above the floor halved
 
 
 # On these short trials a hidden head drag is explained about as well by a tilt or a longitudinal asymmetry,
-# and a payload (seed 1) by a head drag (benchmarks/diagnosis.py; accepted, at 40% of the held-out error,
-# before an accepted effect had to halve it): no effect may be accepted in the true one's place. The payload
-# is ranked first (0.97 +- 0.22 (se)) and named among those the trials cannot tell apart (simulated held-out
-# gains 54%, head drag 41%; measured). Its trials do not separate the two: with a joint-2 trial added, or at
-# 1.2 kg, it is `ambiguous` between other effects (README). (A failed joint's 0.6 N m dry friction ties with a
-# longitudinal asymmetry on them, 67% / 81% linear; on 3 s trials it is found: test_a_visible_hidden_effect_...)
+# and a payload (seed 1) by a tilt (benchmarks/diagnosis.py): no effect may be accepted in the true one's place.
+# The payload leaves the residual unexplained (a tilt removes 44% of the held-out error, too little to name it).
+# A longitudinal asymmetry at 0.8 on 3 s trials is ranked first (0.9 +- 0.2, 95%) and ties with a 1.3 head drag
+# when simulated (87% / 87%): `ambiguous`, both named. (A failed joint's 0.6 N m dry friction ties with a
+# longitudinal asymmetry on 2 s trials, 67% / 81% linear; on 3 s trials it is found: test_a_visible_hidden_effect_...)
 @pytest.mark.slow
-@pytest.mark.parametrize("effect, key, value, seed, named", [("head_drag", "head_drag_mu", 0.5, 0, False),
-                                                             ("module_payload", "payload_kg", 0.8, 1, True)])
-def test_look_alikes_get_no_confident_wrong_answer(tmp_path, effect, key, value, seed, named):
-    result = _diagnose(_campaign(tmp_path, {key: value}, seed=seed))
+@pytest.mark.parametrize("effect, key, value, seed, seconds, named", [
+    ("head_drag", "head_drag_mu", 0.5, 0, SECONDS, False),
+    ("module_payload", "payload_kg", 0.8, 1, SECONDS, False),
+    ("longitudinal_friction_asymmetry", "longitudinal_friction_asymmetry", 0.8, 0, 3.0, True)])
+def test_look_alikes_get_no_confident_wrong_answer(tmp_path, effect, key, value, seed, seconds, named):
+    result = _diagnose(_campaign(tmp_path, {key: value}, seed=seed, seconds=seconds))
     assert all(name == effect for name in result.accepted), (result.verdict, result.rounds[0].table())
     assert result.verdict != "effect_found" or result.accepted == [effect]
     if named:

@@ -32,7 +32,7 @@ class PlantNumbers:
     geometry: ChainGeometry
     com: np.ndarray  # (14,) complex: each module's centre of mass in its frame
     central_yaw_inertia: np.ndarray  # (14,) kg m^2 about each module's centre of mass
-    effort_limit: np.ndarray  # (13,) N m: the plant clamps actuation to it
+    effort_limit: np.ndarray  # (13,) N m: the SDF's, the servos' power (servo.py)
     lower_limit: np.ndarray  # (13,) rad
     upper_limit: np.ndarray  # (13,) rad
 

@@ -80,7 +80,7 @@ def _heading_gain(x, heading, z_heading):
 
 @jit
 def _sensitivity_step(x, x_next, v_star, force_plus, command, sens, sens_z, sens_zh, dparams, dgravity, z_heading, dt,
-                      params, power, servo_gains, gains, heading, mass, yaw_inertia, com, gravity_xy, in_plane, effort,
+                      params, power, servo_gains, gains, heading, mass, yaw_inertia, com, gravity_xy, in_plane,
                       lower, upper, locked, joint_in_parent, joint_in_child, wheel_module, wheel_offset, wheel_toe):
     """Carry the sensitivities through one step (tangent.step_tangent), the PID's command and integrators, and
     the heading controller (the serpenoid's and the replay reference's time terms do not depend on parameters)."""
@@ -93,7 +93,7 @@ def _sensitivity_step(x, x_next, v_star, force_plus, command, sens, sens_z, sens
         dtheta = kp_h * (weights @ sens[d, :nq]) + ki_h * sens_zh[d]
         dcommand[d] = gains[1] * sens_z[d] + gains[0] * (dtheta - sens[d, 3:nq]) - gains[2] * sens[d, nq + 3:]
     new = step_tangent(x, force_plus, v_star, x_next[nq:], sens, dparams, dgravity, dcommand, dt, params, command,
-                       power, servo_gains, mass, yaw_inertia, com, gravity_xy, in_plane, effort, lower, upper, locked,
+                       power, servo_gains, mass, yaw_inertia, com, gravity_xy, in_plane, lower, upper, locked,
                        joint_in_parent, joint_in_child, wheel_module, wheel_offset, wheel_toe)
     kp_n, ki_n = _heading_gain(x_next, heading, z_heading)
     for d in range(num):
@@ -106,7 +106,7 @@ def _sensitivity_step(x, x_next, v_star, force_plus, command, sens, sens_z, sens
 @jit
 def advance_run(x, z_pid, z_heading, segment, k0, k1, t_first, dt, extra_force, params, power, locked,
                 log_steps, log_times, log_next, last_torque, log_state, log_torque, source, gait, heading, breaks,
-                values, rates, gains, stop, model, mass, yaw_inertia, com, effort, lower, upper, joint_in_parent,
+                values, rates, gains, stop, model, mass, yaw_inertia, com, lower, upper, joint_in_parent,
                 joint_in_child, wheel_module, wheel_offset, wheel_toe, sens, sens_z, sens_zh, dparams, dgravity, log_sens):
     """Take the updates k0 <= k < k1 in place on the carried state (x, z_pid, z_heading, segment, log_next,
     last_torque); returns (status, k) with k the index of the state x now holds. Failures change params,
@@ -129,7 +129,7 @@ def advance_run(x, z_pid, z_heading, segment, k0, k1, t_first, dt, extra_force, 
         e_pos = theta - x[3:nq]
         command = gains[1] * z_pid + gains[0] * e_pos + gains[2] * (theta_dot - x[nq + 3:])
         x_next, torque, v_star, force_plus = plant_step(x, dt, params, command, power, servo_gains, extra_force,
-                                                        mass, yaw_inertia, com, gravity_xy, in_plane, effort, lower,
+                                                        mass, yaw_inertia, com, gravity_xy, in_plane, lower,
                                                         upper, locked, joint_in_parent, joint_in_child, wheel_module,
                                                         wheel_offset, wheel_toe)
         while log_next[0] < log_steps.shape[0] and log_steps[log_next[0]] == k:
@@ -143,7 +143,7 @@ def advance_run(x, z_pid, z_heading, segment, k0, k1, t_first, dt, extra_force, 
                                                rates, segment)
                 between = gains[1] * z_pid + gains[0] * (theta - x[3:nq]) + gains[2] * (theta_dot - x[nq + 3:])
                 log_torque[row] = plant_step(x, dt, params, between, power, servo_gains, extra_force, mass,
-                                             yaw_inertia, com, gravity_xy, in_plane, effort, lower, upper, locked,
+                                             yaw_inertia, com, gravity_xy, in_plane, lower, upper, locked,
                                              joint_in_parent, joint_in_child, wheel_module, wheel_offset,
                                              wheel_toe)[1]
             log_next[0] += 1
@@ -153,7 +153,7 @@ def advance_run(x, z_pid, z_heading, segment, k0, k1, t_first, dt, extra_force, 
         if sens.shape[0]:
             _sensitivity_step(x, x_next, v_star, force_plus, command, sens, sens_z, sens_zh, dparams, dgravity,
                               z_heading, dt, params, power, servo_gains, gains, heading, mass, yaw_inertia, com,
-                              gravity_xy, in_plane, effort, lower, upper, locked, joint_in_parent, joint_in_child,
+                              gravity_xy, in_plane, lower, upper, locked, joint_in_parent, joint_in_child,
                               wheel_module, wheel_offset, wheel_toe)
         theta, _, error = _command(t, x_next, source, gait, heading, z_heading, breaks, values, rates, segment)
         z_pid += dt * (theta - x_next[3:nq])

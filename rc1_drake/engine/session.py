@@ -212,7 +212,7 @@ class _CompiledRun:
         gains = np.array([s.kp_Nm_per_rad, s.ki_Nm_per_rad_s, s.kd_Nm_s_per_rad])
         self.constant = (self.log_state, self.log_torque, source, gait, heading, *knots, gains, stop_row, model,
                          numbers.masses(setup.payload_module, setup.payload_kg), numbers.central_yaw_inertia,
-                         numbers.com, numbers.effort_limit, numbers.lower_limit, numbers.upper_limit,
+                         numbers.com, numbers.lower_limit, numbers.upper_limit,
                          *numbers.geometry.arrays)
 
     def advance(self, k0: int, k1: int, t_first: float = np.nan, *, carried=None) -> tuple:

@@ -3,8 +3,8 @@ Drake step it mirrors (tests/test_engine.py holds the two together).
 
     1. FrictionForces (friction.py): the implicit wheel, joint and servo solve at the step's start state,
        giving the friction force and the servos' backward-Euler torque;
-    2. the discrete plant (SAP): free motion v* = v + dt M^-1 (-C v + g + friction + extra
-       + clamp(servo, +-effort limit)) (Eq. 1; the plant clamps actuation at the SDF's effort limit),
+    2. the discrete plant (SAP): free motion v* = v + dt M^-1 (-C v + g + friction + extra + servo) (Eq. 1;
+       the servo clamps its own torque at its power, and the plant adds no clamp: model.add_rc1_plant),
        locked joints held (their velocity 0, the others' the A-norm projection of v*), then the joint
        limits as SAP's unilateral constraints (below), then q+ = q + dt v+.
 
@@ -108,7 +108,7 @@ def _limit_solve(q, v, v_star, A, dt, lower, upper, locked):
 
 @jit
 def plant_step(x, dt, params, servo_command, servo_power, servo_gains, extra_force, mass, yaw_inertia, com,
-               gravity_xy, gravity_in_plane, effort, lower, upper, locked, joint_in_parent, joint_in_child,
+               gravity_xy, gravity_in_plane, lower, upper, locked, joint_in_parent, joint_in_child,
                wheel_module, wheel_offset, wheel_toe):
     """(x+, servo torque (13,), v*, the force that gives the friction solve's v+ = v + dt M^-1 force) of one
     Diagram step from state x (module docstring)."""
@@ -121,7 +121,7 @@ def plant_step(x, dt, params, servo_command, servo_power, servo_gains, extra_for
                                     servo_gains, joint_in_parent, joint_in_child, wheel_module, wheel_offset,
                                     wheel_toe)
     tau = -bias + gravity + friction + extra_force  # the plant applies its gravity field itself
-    tau[3:] += np.minimum(np.maximum(servo[3:], -effort), effort)
+    tau[3:] += servo[3:]
     v = x[nv:]
     v_star = v + dt * spd_solve(M, tau)
     v_next = _limit_solve(x[:nv], v, v_star, M, dt, lower, upper, locked)

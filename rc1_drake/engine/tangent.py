@@ -3,7 +3,7 @@ and the friction-law effects (CompiledSession.simulate(..., sensitivities=...)).
 
 x_{k+1} = step(x_k, p) is differentiated stage by stage (step.py): the chain's terms and the wheels' local
 Jacobians along the state's sensitivity, the implicit friction and servo solve by the implicit function
-theorem (its Newton matrix, exact), the plant's effort clamp, locked joints and the limits' active set.
+theorem (its Newton matrix, exact), locked joints and the limits' active set.
 
 Differentiating the chain recursion of kinematics.py: with delta_phi_k = delta_yaw + sum_{j<k} delta_q_j,
 e_k = exp(i phi_k) moves by i delta_phi_k e_k, so a point r fixed in module k moves by i delta_phi_k R(phi_k) r,
@@ -226,7 +226,7 @@ def _rows(w, num):
 
 @jit
 def step_tangent(x, force_plus, v_star, v_new, S, dparams, dgravity, dcommand, dt, params, servo_command, servo_power,
-                 servo_gains, mass, yaw_inertia, com, gravity_xy, in_plane, effort, lower, upper, locked,
+                 servo_gains, mass, yaw_inertia, com, gravity_xy, in_plane, lower, upper, locked,
                  joint_in_parent, joint_in_child, wheel_module, wheel_offset, wheel_toe):
     """d x_{k+1} (P, 32) of step.py's plant_step along state directions S (P, 32), parameter directions dparams,
     gravity's floor components dgravity (P, 2) and command directions dcommand, given the step's forces and
@@ -248,20 +248,6 @@ def step_tangent(x, force_plus, v_star, v_new, S, dparams, dgravity, dcommand, d
     dv = friction_tangent(x, S, dparams, dcommand, dother, mw, v_plus, M, other, dt, params, servo_command,
                           servo_power, servo_gains, joint_in_parent, joint_in_child, wheel_module, wheel_offset,
                           wheel_toe)
-    # The plant's effort clamp: M (v* - v+) = dt (clamp(servo) - servo).
-    kp, kd = servo_gains
-    rate = kd + dt * kp
-    raw = servo_command + kd * v[3:] - rate * v_plus[3:]
-    over = np.abs(np.minimum(np.maximum(raw, -servo_power), servo_power)) > effort
-    if over.any():
-        linear = np.abs(raw) < servo_power
-        mws = chain_tangent(x, S, _rows(v_star - v_plus, num), mass, yaw_inertia, com, joint_in_parent,
-                            joint_in_child, gravity_xy)[0]
-        for d in range(num):
-            dservo = np.where(linear, dcommand[d] + kd * S[d, nv + 3:] - rate * dv[d, 3:], 0.0)
-            rhs = -mws[d]
-            rhs[3:] -= dt * np.where(over, dservo, 0.0)
-            dv[d] += spd_solve(M, rhs)
     # Locked joints and the limits' active set (step._limit_solve): (A_r + D) v_r = (A v*)_r + h, with D = 1/R
     # and h = sign v_hat / R on the active constraints.
     dofs, signs, v_hat, r_inv, count = limit_constraints(x[:nv], v, v_star, M, dt, lower, upper, locked)
