@@ -128,3 +128,23 @@ def test_campaigns_by_another_model_replay_at_20_to_500_hz_with_or_without_a_cam
     report = compare_campaign(campaign, workers=1)
     assert report.mean_eq6_error_pct < 3.0
     assert all(r.tracking_rms_deg < 0.5 for r in report.trials)
+
+
+@pytest.mark.parametrize("engine", ["compiled", "drake"])
+def test_a_replays_servos_may_pass_rc1s_torque_up_to_their_own_cap(engine):
+    """A circling joint-2 replay needs more than RC1's 1.19 N m (the SDF's effort limit) to follow its angles: the
+    replay's servos give it, up to their 3 N m cap, and the plant adds no clamp of its own (model.add_rc1_plant)."""
+    import dataclasses
+
+    from rc1_drake.config import Friction
+    from rc1_drake.measurements import load_trial
+    from rc1_drake.replay import REPLAY_SERVO, Replayer, tracking_rms_deg
+
+    trial = load_trial("data/paper_campaign/j2_1.json")
+    keep = trial.t - trial.t[0] <= 2.0
+    trial = dataclasses.replace(trial, t=trial.t[keep], q=trial.q[keep], head_yaw_rate=trial.head_yaw_rate[keep],
+                                camera=trial.camera[keep])
+    run = Replayer(trial, engine=engine).run(Friction(), {"wheel_toe_deg": 2.0})
+    peak = np.abs(run.servo_torque).max()
+    assert 1.19 + 0.1 < peak <= REPLAY_SERVO.torque_limit_Nm + 1e-9
+    assert tracking_rms_deg(run, trial) < 0.5
