@@ -28,11 +28,11 @@ import tempfile
 import time
 from pathlib import Path
 
-from rc1_drake.config import FRICTION_NAMES, Friction, Gait, Stop, Z95
+from rc1_drake.config import FRICTION_NAMES, TRUTH_MODELS, Friction, Gait, Stop, Z95
 from rc1_drake.diagnose import diagnose
 from rc1_drake.effects import LIBRARY, effect_values, parameter
 from rc1_drake.measurements import load_campaign
-from rc1_drake.synthesize import REFERENCE_EFFECTS, TRUTH_MODELS, Case, synthesize_campaign
+from rc1_drake.synthesize import REFERENCE_EFFECTS, Case, synthesize_campaign
 
 DESIGN = "none,J7x2"
 

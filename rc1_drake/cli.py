@@ -10,8 +10,8 @@ import sys
 import time
 from pathlib import Path
 
-from .config import (DEFAULT_SCENARIOS, FAILURE_MODES, FRICTION_NAMES, Failure, Friction, ModelFile, Rc1Error,
-                     Scenario, Stop, load_model_file, load_scenario, model_to_yaml, validate)
+from .config import (DEFAULT_SCENARIOS, FAILURE_MODES, FRICTION_NAMES, START_MODES, TRUTH_MODELS, Failure, Friction,
+                     ModelFile, Rc1Error, Scenario, Stop, load_model_file, load_scenario, model_to_yaml, validate)
 from .diagnose import INPUT_NOISE_SAMPLES as DIAGNOSE_NOISE_SAMPLES
 from .engine import ENGINES, make_session, use_engine
 from .identify import INPUT_NOISE_SAMPLES
@@ -95,7 +95,7 @@ def make_parser() -> argparse.ArgumentParser:
                           "repeatable")
     syn.add_argument("--noise-scale", type=_float, default=1.0, metavar="S", help="multiply every sensor noise by S")
     syn.add_argument("--no-camera", action="store_true", help="leave out the overhead camera columns")
-    syn.add_argument("--truth-model", choices=["drake", "reference"], default="drake",
+    syn.add_argument("--truth-model", choices=TRUTH_MODELS, default="drake",
                      help="drake: this project's Diagram through its servos; reference: the independent planar model "
                           "of reference.py (kinematic joints, its own limit model, the head at rest at its start; "
                           "effects: wheel_toe only)")
@@ -115,7 +115,7 @@ def make_parser() -> argparse.ArgumentParser:
                      help="add a physical effect to the model (see rc1 effects); repeatable")
     cmp.add_argument("--json", type=Path, metavar="PATH", help="write every per-trial and per-case number")
     cmp.add_argument("--plots", type=Path, metavar="DIR", help="write figures in the paper's styles")
-    cmp.add_argument("--start", choices=["rest", "fit"], default="rest",
+    cmp.add_argument("--start", choices=START_MODES, default="rest",
                      help="the head's rates at t = 0: rest (the synthetic campaigns' convention: centre of mass at "
                           "rest, mean axis not turning) or fit (to the trial's first 0.5 s of camera and IMU)")
     cmp.add_argument("--workers", type=_positive_int, metavar="N", help="processes (default: every core)")

@@ -9,7 +9,7 @@ from typing import List, Optional
 
 import numpy as np
 
-from .config import Friction
+from .config import START_MODES, Friction
 from .executor import make_executor
 from .measurements import Campaign, Trial
 from .metrics import circle_diameter, revolutions
@@ -141,9 +141,6 @@ def score_trial(trial: Trial, run) -> TrialResult:
         circle_diameter_measured_m=None if cam_diameter is None or not math.isfinite(cam_diameter) else float(cam_diameter),
         t=t[inside], yaw_rate_residual=rate_residual, position_residual=position_residual,
     )
-
-
-START_MODES = ("rest", "fit")
 
 
 def _replay_and_score(trial: Trial, friction, effects, numerics, start="rest"):

@@ -18,6 +18,8 @@ GRAVITY_M_S2 = 9.81  # m/s^2, the normal force m g of Eqs. 4-5
 JOINT_LIMIT_DEG = 38.0
 Z95 = 1.96  # every reported 95% interval is the value +- Z95 standard errors (normal, Wald)
 FAILURE_MODES = ("free", "locked", "weak")
+TRUTH_MODELS = ("drake", "reference")  # what synthesize makes campaigns with (synthesize.py)
+START_MODES = ("rest", "fit")  # where a replay takes the head's rates at t = 0 from (compare.py, start.py)
 
 
 class Rc1Error(Exception):

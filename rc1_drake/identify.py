@@ -329,12 +329,9 @@ def _replay_residual_and_jacobian(trial, friction: Friction, effects, names) -> 
 
 
 def residual_jacobian(trial, run, residual) -> np.ndarray:
-    """d trial_residual / d parameter (one column per run.sensitivity_names) of a run with sensitivities. The
-    residuals are linear in the logged states (interpolated head positions, yaw rates), so shifting the states
-    by one sensitivity column gives its residual column exactly."""
-    columns = [trial_residual(trial, dataclasses.replace(run, state=run.state + run.sensitivity[:, p])) - residual
-               for p in range(len(run.sensitivity_names))]
-    return np.column_stack(columns) if columns else np.zeros((len(residual), 0))
+    """d trial_residual / d parameter (one column per run.sensitivity_names) of a run with sensitivities: exact,
+    the residuals being linear in the logged states (Run.residual_jacobian)."""
+    return run.residual_jacobian(lambda moved: trial_residual(trial, moved), residual)
 
 
 def exact_jacobian_available(names) -> bool:

@@ -88,6 +88,14 @@ class Run:
     sensitivity: Optional[np.ndarray] = None
     sensitivity_names: tuple = ()
 
+    def residual_jacobian(self, residual_of, residual) -> np.ndarray:
+        """d residual_of(run) / d parameter, one column per sensitivity_names, for a residual linear in the logged
+        states (interpolated positions and rates): the residual of the logs moved along each sensitivity, less
+        `residual` (residual_of(self))."""
+        columns = [residual_of(dataclasses.replace(self, state=self.state + self.sensitivity[:, p])) - residual
+                   for p in range(len(self.sensitivity_names))]
+        return np.column_stack(columns) if columns else np.zeros((len(residual), 0))
+
     @property
     def head_xy(self):
         return self.state[:, 0:2]

@@ -62,16 +62,20 @@ def joint_reference(trial: Trial, measured_q=None) -> JointReference:
         variances.append(variance)
     # Past the data (EVENT_GRACE_SAMPLES, to reach a stop event) the joints go on at their last rates; a knot
     # there makes both engines follow the same continuation.
-    grace = EVENT_GRACE_SAMPLES * float(np.median(np.diff(t)))
+    grace = _grace_s(t)
     t = np.append(t, t[-1] + grace)
     q, q_dot = np.vstack([q, q[-1] + grace * q_dot[-1]]), np.vstack([q_dot, q_dot[-1]])
     return JointReference(t=t, q=q, q_dot=q_dot, noise_rad=float(np.sqrt(np.mean(variances))) if variances else 0.0)
 
 
+def _grace_s(t) -> float:
+    """How long past its data a replay may run to reach its stop event (EVENT_GRACE_SAMPLES periods)."""
+    return EVENT_GRACE_SAMPLES * float(np.median(np.diff(t)))
+
+
 def replay_scenario(trial: Trial, friction: Friction, effects=None, numerics=None) -> Scenario:
     """The scenario of a replay: the trial's failures and stop rule, the given friction (and effects)."""
-    end = float(trial.t[-1] - trial.t[0])
-    grace = EVENT_GRACE_SAMPLES * float(np.median(np.diff(trial.t)))
+    end, grace = float(trial.t[-1] - trial.t[0]), _grace_s(trial.t)
     if trial.stop.type == "line":
         stop = Stop(line_x_m=trial.stop.value, revolutions=None, time_limit_s=end + grace)
     elif trial.stop.type == "revolutions":

@@ -49,15 +49,13 @@ def _start_residual(trial, run, window: float) -> np.ndarray:
 def _residual_and_jacobian(trial, session, scenario, x0, window: float) -> tuple:
     run = session.simulate(scenario, initial=x0, sensitivities=START_NAMES)
     r = _start_residual(trial, run, window)
-    columns = [_start_residual(trial, dataclasses.replace(run, state=run.state + run.sensitivity[:, p]), window) - r
-               for p in range(3)]
-    return r, np.column_stack(columns)
+    return r, run.residual_jacobian(lambda moved: _start_residual(trial, moved, window), r)
 
 
 def fit_start(trial, session, scenario, x0, *, window: float = START_FIT_S) -> StartEstimate:
     """The head's rates at t = 0 that make the replay (`session`: a compiled one with the replay's joint reference;
-    `scenario`: the replay's) from `x0` (its pose and joint motion; its head rates the first guess) best match the trial's first
-    `window` s (module docstring)."""
+    `scenario`: the replay's) from `x0` (its pose and joint motion; its head rates the first guess) best match
+    the trial's first `window` s (module docstring)."""
     x0 = np.array(x0, dtype=float)
     end = min(window, float(trial.t[-1] - trial.t[0]))
     short = dataclasses.replace(scenario, stop=Stop(line_x_m=None, revolutions=None, time_limit_s=end))

@@ -14,7 +14,7 @@ from typing import List, Optional
 
 import numpy as np
 
-from .config import NUM_JOINTS, Failure, Friction, Gait, Numerics, Rc1Error, Scenario, Start, Stop
+from .config import NUM_JOINTS, TRUTH_MODELS, Failure, Friction, Gait, Numerics, Rc1Error, Scenario, Start, Stop
 from .diagram import build_key
 from .measurements import Campaign, Stop as TrialStop, Trial, write_trial
 from .engine import make_session
@@ -70,7 +70,6 @@ SERVO_SPEED_LIMIT_DEG_S = 140.0  # HiTec HS5645MG (paper section 2; models/rc1.s
 DESIGNS = {"paper": PAPER_DESIGN, "identification": IDENTIFICATION_DESIGN}
 
 
-TRUTH_MODELS = ("drake", "reference")
 REFERENCE_EFFECTS = ("wheel_toe_deg",)  # what the independent model can express
 
 
