@@ -55,3 +55,8 @@ def test_a_campaign_made_by_the_reference_model_records_its_own_start(tmp_path):
     with pytest.raises(Rc1Error, match="can express wheel_toe_deg only"):
         synthesize_campaign(tmp_path / "d", design=[Case([], 1)], truth_model="reference",
                             effects={"head_drag_mu": 0.2})
+    with pytest.raises(Rc1Error, match="non-negative multiple of the sample period, got 0.015"):
+        synthesize_campaign(tmp_path / "e", design=[Case([], 1)], truth_model="reference", record_after_s=0.015,
+                            sample_period_s=0.01)
+    with pytest.raises(Rc1Error, match="truth model must be one of drake, reference, got 'mujoco'"):
+        synthesize_campaign(tmp_path / "f", design=[Case([], 1)], truth_model="mujoco")
