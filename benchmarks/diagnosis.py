@@ -2,7 +2,7 @@
 
     python benchmarks/diagnosis.py [--seeds 3] [--time-limit-s 3] [--workers 2] [--effects NAME,...]
                                    [--strengths 0.5,1,1.5] [--hold-friction] [--design none,J7x2]
-                                   [--truth-model drake|reference] [--record-after-s 0]
+                                   [--truth-model drake|reference] [--record-after-s 0] [--candidates physical]
                                    [--out benchmarks/out/diagnosis.jsonl]
 
 For every effect the replays can see, campaigns of its design (the trials that make it visible: a
@@ -19,6 +19,8 @@ verdict was the whole right answer (effect_found with the hidden effect alone; n
 coefficient). --truth-model reference makes the campaigns with the independent model (reference.py: kinematic
 joints, the head at rest at its start, its own limit model; of the library it expresses the wheel toe only),
 --record-after-s starts their recording after the robot did: data this project's model did not make.
+--candidates sensor (or physical,sensor) lets the diagnosis consider the sensor faults, which the reference model
+also makes (potentiometer_offset_j9 hides one).
 """
 
 import argparse
@@ -30,7 +32,7 @@ from pathlib import Path
 
 from rc1_drake.config import FRICTION_NAMES, TRUTH_MODELS, Friction, Gait, Stop, Z95
 from rc1_drake.diagnose import diagnose
-from rc1_drake.effects import LIBRARY, effect_values, parameter
+from rc1_drake.effects import LIBRARY, candidate_names, effect_values, parameter
 from rc1_drake.measurements import load_campaign
 from rc1_drake.synthesize import REFERENCE_EFFECTS, Case, synthesize_campaign
 
@@ -67,11 +69,12 @@ REFERENCE = {  # a clearly visible strength on DESIGN's 3 s trials (diagnose.pro
     "module_payload": ("payload_kg", 0.8),
     "ground_slope": ("ground_slope_deg", 4.0),  # the diagnosis searches floors within 5 deg (effects.GroundSlope)
     "stribeck_friction": ("stribeck_ratio", 2.0),
+    "potentiometer_offset_j9": ("potentiometer_offset_j9_deg", 2.0),  # a sensor fault: joint 9 reads 2 deg high
 }
 
 
 def one(effect, strength, seed, seconds, workers, held=(), design=DESIGN, truth_model="drake",
-        record_after_s=0.0) -> dict:
+        record_after_s=0.0, candidates="physical") -> dict:
     effects = {} if effect is None else {REFERENCE[effect][0]: REFERENCE[effect][1] * strength}
     with tempfile.TemporaryDirectory() as tmp:
         synthesize_campaign(tmp, design=parse_design(design), effects=effects, seed=seed, truth_model=truth_model,
@@ -79,7 +82,8 @@ def one(effect, strength, seed, seconds, workers, held=(), design=DESIGN, truth_
                             stop=Stop(line_x_m=None, revolutions=None, time_limit_s=seconds))
         campaign = load_campaign(tmp)
         start = time.perf_counter()
-        result = diagnose(campaign, friction=Friction(), workers=workers, probe_study=False, held=held)
+        result = diagnose(campaign, friction=Friction(), workers=workers, probe_study=False, held=held,
+                          candidates=candidates.split(","))
     first = result.candidates[0] if result.candidates else None
     inside, estimate = None, None
     if effect is not None:  # the final model's estimate (after every round's refit), in the fitted coordinates
@@ -88,7 +92,7 @@ def one(effect, strength, seed, seconds, workers, held=(), design=DESIGN, truth_
         if estimate:
             inside = all(abs(v - truth[k]) <= Z95 * se for k, (v, se) in estimate.items())
     return {"effect": effect, "strength": strength, "seed": seed, "design": design, "truth_model": truth_model,
-            "record_after_s": record_after_s, "verdict": result.verdict,
+            "record_after_s": record_after_s, "candidates": candidates, "verdict": result.verdict,
             "accepted": result.accepted, "first": first.name if first else None, "inside_interval": inside,
             "estimate": estimate,
             "first_round": [[c.name, c.status, c.coordinates, (c.simulated or {}).get("held_out_reduction")]
@@ -111,15 +115,18 @@ def main():
     parser.add_argument("--truth-model", choices=TRUTH_MODELS, default="drake",
                         help="what makes the campaigns (default: drake, this project's model)")
     parser.add_argument("--record-after-s", type=float, default=0.0, help="the recording starts this late")
+    parser.add_argument("--candidates", default="physical",
+                        help="what the diagnosis considers: physical (default), sensor, or effect names (comma list)")
     parser.add_argument("--out", type=Path, default=Path("benchmarks/out/diagnosis.jsonl"))
     args = parser.parse_args()
-    made = (args.truth_model, args.record_after_s)
+    made = (args.truth_model, args.record_after_s, args.candidates)
     args.out.parent.mkdir(parents=True, exist_ok=True)
     done = {}
     if args.out.exists():
         for line in args.out.read_text().splitlines():
             row = json.loads(line)
-            if (row.get("truth_model", "drake"), row.get("record_after_s", 0.0)) == made:  # a study per truth
+            if (row.get("truth_model", "drake"), row.get("record_after_s", 0.0),
+                    row.get("candidates", "physical")) == made:  # a study per truth and candidate set
                 done[(row["effect"], row["strength"], row["seed"], row.get("design", DESIGN))] = row
     effects = args.effects.split(",")
     unknown = [e for e in effects if e not in REFERENCE]
@@ -141,6 +148,10 @@ def main():
             if not domain.lower <= reference * k <= domain.upper:
                 raise SystemExit(f"--strengths: {args.strengths!r} puts {key} at {reference * k:g}, outside "
                                  f"[{domain.lower:g}, {domain.upper:g}] (its reference strength is {reference:g})")
+    try:
+        candidate_names(args.candidates.split(","))
+    except ValueError as error:
+        raise SystemExit(f"--candidates: {error}") from None
     jobs = [(e, k, s, args.design or DESIGNS.get(e, DESIGN)) for e in effects for k in strengths
             for s in range(args.seeds)]
     designs = list(dict.fromkeys(j[3] for j in jobs))
@@ -158,7 +169,8 @@ def main():
             f.write(json.dumps(row) + "\n")
         print(f"[{n + 1}/{len(jobs)}] {effect or 'no effect'} x{strength:g} seed {seed} ({design}): "
               f"{row['verdict']}, accepted {row['accepted']}, first {row['first']}, {row['wall_s']:.0f} s", flush=True)
-    print(f"\ncampaigns made by {args.truth_model}" + (f", recorded {args.record_after_s:g} s late" if args.record_after_s else ""))
+    print(f"\ncampaigns made by {args.truth_model}" + (f", recorded {args.record_after_s:g} s late" if args.record_after_s else "")
+          + f"; candidates: {args.candidates}")
     print(f"{'hidden effect':<34}{'design':>11}{'strength':>9}{'accepted':>10}{'first':>7}{'in CI':>7}{'wrong':>7}"
           f"{'partial':>9}{'right':>7}{'mean s':>8}")
     groups = {}

@@ -180,7 +180,8 @@ def make_parser() -> argparse.ArgumentParser:
     dgn.add_argument("--model-file", type=Path, metavar="MODEL.yaml",
                      help="today's model (friction and effects; default: the paper's identified friction, no effect)")
     dgn.add_argument("--candidates", type=_candidates, metavar="NAMES",
-                     help="comma-separated effect names to consider (default: the whole library, see rc1 effects)")
+                     help="comma-separated effect names or groups to consider: physical (the default), sensor (the "
+                          "potentiometer offsets), or names from rc1 effects")
     dgn.add_argument("--trials", metavar="IDS", help="comma-separated trial ids (default: all)")
     dgn.add_argument("--freeze", action="append", default=[], choices=FRICTION_NAMES, metavar="NAME",
                      help="keep a friction coefficient at the model's value (repeatable; saves its replays)")
@@ -214,12 +215,13 @@ def _add_outputs(parser, *, out_help: str) -> None:
 
 
 def _candidates(text: str) -> list:
-    from .effects import LIBRARY
+    from .effects import candidate_names
 
     names = [n.strip() for n in text.split(",") if n.strip()]
-    for n in names:
-        if n not in LIBRARY:
-            raise argparse.ArgumentTypeError(f"unknown effect '{n}' (known: {', '.join(LIBRARY)})")
+    try:
+        candidate_names(names)
+    except ValueError as error:
+        raise argparse.ArgumentTypeError(str(error)) from None
     return names
 
 

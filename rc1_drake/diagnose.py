@@ -49,7 +49,7 @@ import numpy as np
 
 from . import identify as idf
 from .config import FRICTION_NAMES, Z95, Friction
-from .effects import LIBRARY, active, effect_values
+from .effects import LIBRARY, active, candidate_names, effect_values
 from .engine import default_engine
 
 P_ACCEPT = 2.7e-3  # Wald test of a candidate's parameters against 0: |z| > 3 for one parameter
@@ -710,7 +710,8 @@ def diagnose(campaign, *, friction: Optional[Friction] = None, effects=None, can
              held=(), workers=None, scheduler=None, input_noise_samples=INPUT_NOISE_SAMPLES, max_rounds=MAX_ROUNDS,
              probe_study=True, progress=None) -> Diagnosis:
     """The loop of the module docstring on `campaign` (its `trials`, all by default), from the model
-    (`friction`, `effects`); `candidates` are effect names (the library's, by default); the friction
+    (`friction`, `effects`); `candidates` are effect names or groups (effects.candidate_names; by default the
+    physical effects); the friction
     coefficients named in `held` stay at their values (no replays spent on them)."""
     from .executor import make_executor
 
@@ -718,7 +719,7 @@ def diagnose(campaign, *, friction: Optional[Friction] = None, effects=None, can
     friction = friction or Friction()
     chosen = idf.choose_trials(campaign, trials)
     effects = dict(effects or {})
-    names = list(candidates or LIBRARY)
+    names = candidate_names(candidates)
     not_detectable = []
     for n in names:
         if not LIBRARY[n].seen_in_replay:

@@ -64,6 +64,7 @@ class Effect:
     # (engine/session.py) do not follow; its derivatives are taken by finite differences of runs.
     differentiable: bool = True
     failed_joints_only: bool = False  # True: it acts only in failed joints (a trial without one is unchanged)
+    sensor: bool = False  # True: a measurement fault (the robot is the paper's; what its sensors report is not)
 
     def configure(self, setup: ModelSetup, values: Dict[str, float]) -> None:
         """Change `setup` for parameter `values` (all of this effect's keys present)."""
@@ -71,6 +72,10 @@ class Effect:
     def gait(self, gait: Gait, values: Dict[str, float]) -> Gait:
         """The gait the joints are commanded to follow, for runs driven by the gait."""
         return gait
+
+    def angle_offsets(self, values: Dict[str, float]) -> Optional[np.ndarray]:
+        """(13,) rad that the potentiometers add to the joint angles they read, or None."""
+        return None
 
     @property
     def main(self) -> EffectParameter:
@@ -219,6 +224,43 @@ class ServoLag(Effect):
         return dataclasses.replace(gait, joints=joints)
 
 
+class PotentiometerOffset(Effect):
+    """A sensor fault: one joint's potentiometer reads its angle plus a constant offset (a misaligned horn or
+    a shifted zero). The servo closes its loop on that reading, so a gait-driven joint settles at the command
+    minus the offset (Eq. 7's bias B_i moved by -offset) while the data show the command; a replay follows the
+    measured angles minus the offset. One effect per joint, so that a diagnosis names the joint."""
+
+    sensor = True
+    differentiable = False  # it moves the gait command and the replay's reference, not the model's parameters
+
+    def __init__(self, joint: int):
+        self.joint = joint
+        self.name = f"potentiometer_offset_j{joint}"
+        self.summary = f"joint {joint}'s potentiometer reads the angle plus a constant offset (sensor fault)"
+        self.parameters = (EffectParameter(f"potentiometer_offset_j{joint}_deg", -10.0, 10.0, probe=1.0),)
+
+    search_deg = 5.0  # a diagnosis searches offsets a calibration could have missed (a few degrees)
+
+    def coordinate_space(self):
+        return [dataclasses.replace(self.main, lower=-self.search_deg, upper=self.search_deg)]
+
+    def angle_offsets(self, values):
+        offsets = np.zeros(NUM_JOINTS)
+        offsets[self.joint - 1] = math.radians(values[self.main.key])
+        return offsets
+
+    def gait(self, gait, values):
+        from .gait import serpenoid_parameters
+
+        offset = values[self.main.key]
+        if offset == 0.0:
+            return gait
+        bias = math.degrees(serpenoid_parameters(gait)[3][self.joint - 1])
+        own = next((jg for jg in gait.joints if jg.joint == self.joint), JointGait(joint=self.joint))
+        others = [jg for jg in gait.joints if jg.joint != self.joint]
+        return dataclasses.replace(gait, joints=[*others, dataclasses.replace(own, bias_deg=bias - offset)])
+
+
 LIBRARY: Dict[str, Effect] = {}
 
 
@@ -233,8 +275,29 @@ def register(effect: Effect) -> Effect:
 
 
 for _effect in (GroundSlope(), LateralFrictionAsymmetry(), LongitudinalFrictionAsymmetry(), HeadDrag(),
-                JointCoulombFriction(), StribeckFriction(), WheelToe(), ModulePayload(), ServoLag()):
+                JointCoulombFriction(), StribeckFriction(), WheelToe(), ModulePayload(), ServoLag(),
+                *(PotentiometerOffset(j) for j in range(1, NUM_JOINTS + 1))):
     register(_effect)
+
+
+# Names that stand for a group of the library in a list of candidates (diagnose, rc1 diagnose --candidates).
+CANDIDATE_GROUPS = {"physical": lambda e: not e.sensor, "sensor": lambda e: e.sensor}
+
+
+def candidate_names(names: Optional[List[str]] = None) -> List[str]:
+    """Effect names, with the groups expanded; by default the physical effects. The sensor faults are asked for
+    (`sensor`): from the motion alone a bend at one joint mimics a toe or a failed joint's dry friction
+    (README, Candidate physical effects), so on by default they would blur what the physics tells."""
+    out = []
+    for name in names or ["physical"]:
+        if name in CANDIDATE_GROUPS:
+            out += [e.name for e in LIBRARY.values() if CANDIDATE_GROUPS[name](e)]
+        elif name in LIBRARY:
+            out.append(name)
+        else:
+            raise ValueError(f"unknown effect '{name}' (known: {', '.join(LIBRARY)}; groups: "
+                             f"{', '.join(CANDIDATE_GROUPS)})")
+    return list(dict.fromkeys(out))
 
 
 def parameter_owner(key: str) -> Optional[Effect]:
@@ -305,6 +368,16 @@ def commanded_gait(gait: Gait, effects: Dict[str, float]) -> Gait:
     for effect in active(effects):
         gait = effect.gait(gait, effect_values(effects, effect))
     return gait
+
+
+def angle_offsets(effects: Dict[str, float]) -> np.ndarray:
+    """(13,) rad: what the potentiometers add to the joint angles they read, by the active sensor faults."""
+    total = np.zeros(NUM_JOINTS)
+    for effect in active(effects):
+        offsets = effect.angle_offsets(effect_values(effects, effect))
+        if offsets is not None:
+            total += offsets
+    return total
 
 
 def model_setup(effects: Dict[str, float]) -> ModelSetup:

@@ -61,7 +61,7 @@ def configure_context(built: RC1Diagram, context, scenario: Scenario, initial=No
                   sgn_smoothing_m_s=scenario.numerics.sgn_smoothing_m_s)
     built.failure_switch.reset(context, scenario.servo.torque_limit_Nm)
     if built.gait_bias is not None:
-        bias = serpenoid_parameters(scenario.gait)[3]
+        bias = serpenoid_parameters(commanded_gait(scenario.gait, scenario.effects))[3]  # a sensor fault moves it
         built.gait_bias.get_mutable_source_value(built.gait_bias.GetMyMutableContextFromRoot(context)).SetFromVector(bias)
     plant_context = built.plant.GetMyMutableContextFromRoot(context)
     x0 = initial_state(scenario, built.rc1.geometry) if initial is None else initial

@@ -17,6 +17,7 @@ import numpy as np
 from pydrake.trajectories import PiecewisePolynomial
 
 from .config import Failure, Friction, Numerics, Scenario, Servo, Start, Stop
+from .effects import angle_offsets
 from .gait import serpenoid
 from .measurements import Trial
 from .engine import make_session
@@ -43,6 +44,13 @@ class JointReference:
     q: np.ndarray  # (N, 13) smoothed angles (failed joints: 0, unused)
     q_dot: np.ndarray  # (N, 13)
     noise_rad: float  # the potentiometers' noise the smoothing finds (smoothed_samples), pooled over the joints
+
+    def less(self, offsets_rad: np.ndarray) -> "JointReference":
+        """The reference of angles read `offsets_rad` (13,) high (effects.angle_offsets): the smoothing is linear
+        and reproduces constants, and GCV's choice does not move with them, so it is this one shifted exactly."""
+        if not np.any(offsets_rad):
+            return self
+        return dataclasses.replace(self, q=self.q - offsets_rad)
 
     @functools.cached_property
     def trajectory(self):
@@ -126,7 +134,10 @@ class Replayer:
     def run(self, friction: Friction, effects=None, *, sensitivities=()) -> Run:
         """The replay; with `sensitivities` (names, compiled engine) also d state / d parameter (Run.sensitivity)."""
         scenario = replay_scenario(self.trial, friction, effects, self.numerics)
-        return self.session.simulate(scenario, initial=self.initial, sensitivities=sensitivities)
+        offsets = angle_offsets(effects or {})
+        if not offsets.any():
+            return self.session.simulate(scenario, initial=self.initial, sensitivities=sensitivities)
+        return self._run_following(self.reference.less(offsets), scenario, sensitivities)
 
     def angle_noise_rad(self) -> float:
         """The potentiometers' noise as the smoothing sees it (JointReference.noise_rad)."""
@@ -146,13 +157,17 @@ class Replayer:
 
     def run_with_angles(self, friction: Friction, effects, measured_q: np.ndarray) -> Run:
         """A replay from `measured_q` in place of the trial's angles (same samples), this Diagram reused."""
-        reference = joint_reference(self.trial, measured_q)
+        reference = joint_reference(self.trial, measured_q).less(angle_offsets(effects or {}))
+        return self._run_following(reference, replay_scenario(self.trial, friction, effects, self.numerics))
+
+    def _run_following(self, reference: JointReference, scenario: Scenario, sensitivities=()) -> Run:
+        """The replay with the working joints following `reference` in place of the trial's own, this Diagram reused."""
         self.session.set_joint_reference(reference)
         try:
             initial = replay_initial_state(self.trial, reference, self.session.geometry)
             if self.start is not None:
                 initial[16:19] = self.start.head_rates
-            return self.session.simulate(replay_scenario(self.trial, friction, effects, self.numerics), initial=initial)
+            return self.session.simulate(scenario, initial=initial, sensitivities=sensitivities)
         finally:
             self.session.set_joint_reference(self.reference)
 

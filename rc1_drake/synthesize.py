@@ -16,6 +16,7 @@ import numpy as np
 
 from .config import NUM_JOINTS, TRUTH_MODELS, Failure, Friction, Gait, Numerics, Rc1Error, Scenario, Start, Stop
 from .diagram import build_key
+from .effects import LIBRARY, angle_offsets, commanded_gait
 from .measurements import Campaign, Stop as TrialStop, Trial, write_trial
 from .engine import make_session
 
@@ -70,7 +71,9 @@ SERVO_SPEED_LIMIT_DEG_S = 140.0  # HiTec HS5645MG (paper section 2; models/rc1.s
 DESIGNS = {"paper": PAPER_DESIGN, "identification": IDENTIFICATION_DESIGN}
 
 
-REFERENCE_EFFECTS = ("wheel_toe_deg",)  # what the independent model can express
+# What the independent model can express: the wheel toe, and the sensor faults (they act on its command and
+# on what its sensors read, not on its physics).
+REFERENCE_EFFECTS = ("wheel_toe_deg", *(e.main.key for e in LIBRARY.values() if e.sensor))
 
 
 def synthesize_campaign(folder, *, design=PAPER_DESIGN, friction=None, effects=None, noise=None, variation=None,
@@ -87,8 +90,8 @@ def synthesize_campaign(folder, *, design=PAPER_DESIGN, friction=None, effects=N
     if truth_model not in TRUTH_MODELS:
         raise Rc1Error(f"synthesize: truth model must be one of {', '.join(TRUTH_MODELS)}, got {truth_model!r}")
     if truth_model == "reference" and set(effects or {}) - set(REFERENCE_EFFECTS):
-        raise Rc1Error(f"synthesize: the reference truth model can express {', '.join(REFERENCE_EFFECTS)} only, "
-                       f"not {', '.join(sorted(set(effects) - set(REFERENCE_EFFECTS)))}")
+        raise Rc1Error(f"synthesize: the reference truth model can express wheel_toe_deg and the sensor faults "
+                       f"(potentiometer_offset_j<n>_deg) only, not {', '.join(sorted(set(effects) - set(REFERENCE_EFFECTS)))}")
     if record_after_s < 0 or abs(record_after_s / sample_period_s - round(record_after_s / sample_period_s)) > 1e-9:
         raise Rc1Error(f"synthesize: record_after_s must be a non-negative multiple of the sample period, "
                        f"got {record_after_s}")
@@ -165,6 +168,7 @@ def _reference_run(scenario: Scenario, record_after_s: float, period: float) -> 
     from .reference import simulate_reference
 
     late = _late(scenario, record_after_s)
+    late = dataclasses.replace(late, gait=commanded_gait(late.gait, late.effects))  # a sensor fault's command
     end = late.stop.time_limit_s
     grid = record_after_s + np.arange(int(math.floor((end - record_after_s) / period + 1e-9)) + 1) * period
     geometry = plant_numbers().geometry
@@ -185,7 +189,6 @@ def noise_free_twin(trial: Trial, *, friction: Friction, effects=None) -> Trial:
     start pose and sample times, driven by the servos for the trial's whole duration (whatever its stop
     rule, so that the samples line up with the trial's), with a camera. Replaying the twin shows what the
     replay itself misses on this kind of motion (diagnose.replay_error)."""
-    from .effects import commanded_gait
     from .gait import serpenoid
     from .kinematics import module_yaws
 
@@ -221,7 +224,7 @@ def _measure(run, scenario, trial_id, noise: Noise, rng, camera, period) -> Tria
     on_grid = np.abs(run.t / period - np.round(run.t / period)) < 1e-6  # drop the off-grid stop instant
     t = run.t[on_grid]
     n = len(t)
-    q = run.q[on_grid] + rng.normal(0, math.radians(noise.potentiometer_deg), (n, 13))
+    q = run.q[on_grid] + angle_offsets(scenario.effects) + rng.normal(0, math.radians(noise.potentiometer_deg), (n, 13))
     for f in scenario.failures:
         q[:, f.joint - 1] = np.nan
     rate = run.head_yaw_rate[on_grid] + rng.normal(0, noise.imu_bias_rad_s) + rng.normal(0, noise.imu_rad_s, n)

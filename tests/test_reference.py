@@ -52,7 +52,7 @@ def test_a_campaign_made_by_the_reference_model_records_its_own_start(tmp_path):
     np.testing.assert_allclose(trial.q, commanded, atol=1e-6)
     start_speed = np.linalg.norm(trial.camera[1, :2] - trial.camera[0, :2]) / 0.02
     assert start_speed > 0.05  # m/s: the head was moving when the recording began
-    with pytest.raises(Rc1Error, match="can express wheel_toe_deg only"):
+    with pytest.raises(Rc1Error, match="can express wheel_toe_deg and the sensor faults .* only, not head_drag_mu"):
         synthesize_campaign(tmp_path / "d", design=[Case([], 1)], truth_model="reference",
                             effects={"head_drag_mu": 0.2})
     with pytest.raises(Rc1Error, match="non-negative multiple of the sample period, got 0.015"):

@@ -164,8 +164,7 @@ class CompiledSession:
             return (REFERENCE, np.zeros((4, NUM_JOINTS)), np.zeros(5 + 16),
                     (np.ascontiguousarray(ref.t, dtype=float), np.ascontiguousarray(ref.q, dtype=float),
                      np.ascontiguousarray(ref.q_dot, dtype=float)))
-        amp, omega, phase, _ = serpenoid_parameters(commanded_gait(scenario.gait, scenario.effects))
-        bias = serpenoid_parameters(scenario.gait)[3]
+        amp, omega, phase, bias = serpenoid_parameters(commanded_gait(scenario.gait, scenario.effects))
         hc = scenario.heading_control
         heading = np.zeros(5 + 16)
         if hc.active:

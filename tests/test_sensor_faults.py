@@ -1,0 +1,108 @@
+"""Sensor faults as candidates (effects.PotentiometerOffset): what the robot does and what its sensors read
+when one potentiometer is offset, and that a replay takes a known offset back out of the data exactly."""
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+from rc1_drake.config import Friction, Gait, JointGait, Scenario, Stop
+from rc1_drake.effects import LIBRARY, angle_offsets, commanded_gait
+from rc1_drake.gait import serpenoid, serpenoid_parameters
+from rc1_drake.measurements import load_campaign, load_trial
+from rc1_drake.protocol import simulate
+from rc1_drake.replay import Replayer
+from rc1_drake.smoothing import smoothed_samples
+from rc1_drake.synthesize import Case, Noise, Variation, synthesize_campaign
+
+CAMPAIGN = "data/paper_campaign"
+OFFSET_DEG = 3.0
+
+
+def test_the_smoothing_of_a_shifted_signal_is_the_smoothed_signal_shifted():
+    """The replay's correction rests on this: the GCV spline reproduces constants and its weight does not move."""
+    trial = load_trial(f"{CAMPAIGN}/j7_1.json")
+    t, y = trial.t - trial.t[0], trial.q[:, 8]
+    plain, shifted = smoothed_samples(t, y), smoothed_samples(t, y + math.radians(OFFSET_DEG))
+    np.testing.assert_allclose(shifted[0], plain[0] + math.radians(OFFSET_DEG), atol=1e-9)
+    np.testing.assert_allclose(shifted[1], plain[1], atol=1e-8)
+    assert shifted[2] == pytest.approx(plain[2], rel=1e-9)
+
+
+@pytest.mark.parametrize("engine", ["compiled", "drake"])
+def test_a_replay_takes_a_known_offset_back_out_of_the_data(engine):
+    trial = load_trial(f"{CAMPAIGN}/j7_1.json")
+    keep = trial.t - trial.t[0] <= 1.0
+    trial = dataclasses.replace(trial, t=trial.t[keep], q=trial.q[keep], head_yaw_rate=trial.head_yaw_rate[keep],
+                                camera=trial.camera[keep], stop=dataclasses.replace(trial.stop, type="time", value=1.0))
+    reads_high = trial.q.copy()
+    reads_high[:, 8] += math.radians(OFFSET_DEG)
+    faulty = dataclasses.replace(trial, q=reads_high)
+    plain = Replayer(trial, engine=engine).run(Friction())
+    replayer = Replayer(faulty, engine=engine)
+    corrected = replayer.run(Friction(), {"potentiometer_offset_j9_deg": OFFSET_DEG})
+    np.testing.assert_allclose(corrected.state, plain.state, atol=1e-8)
+    uncorrected = replayer.run(Friction())  # the replayer goes back to the data as read (up to the joint limit)
+    assert 0.7 * OFFSET_DEG < math.degrees(np.mean(uncorrected.q[:, 8] - plain.q[:, 8])) <= OFFSET_DEG
+    noisy = replayer.angle_noise(np.random.default_rng(0), 0.004)  # the bootstrap's path corrects alike
+    np.testing.assert_allclose(replayer.run_with_angles(Friction(), {"potentiometer_offset_j9_deg": OFFSET_DEG},
+                                                        reads_high + noisy).state,
+                               Replayer(trial, engine=engine).run_with_angles(Friction(), None, trial.q + noisy).state,
+                               atol=1e-8)
+
+
+GAIT = Gait(amplitude_deg=30.0)  # within the joint limits when a joint's bias moves by the offset
+
+
+def test_a_gait_driven_joint_settles_off_its_command_while_its_potentiometer_reads_the_command():
+    """The servo closes its loop on the faulty reading: the joint's mean angle is the command's bias minus the
+    offset (Eq. 7), the other joints' are unchanged."""
+    effects = {"potentiometer_offset_j9_deg": OFFSET_DEG}
+    bias = serpenoid_parameters(commanded_gait(GAIT, effects))[3]
+    assert math.degrees(bias[8]) == pytest.approx(-OFFSET_DEG)
+    assert not np.any(np.delete(bias, 8))
+    assert math.degrees(angle_offsets(effects)[8]) == pytest.approx(OFFSET_DEG)
+    stop = Stop(line_x_m=None, revolutions=None, time_limit_s=2.0 * 360.0 / GAIT.frequency_deg_s)
+    faulty = simulate(scenario=Scenario(gait=GAIT, effects=effects, stop=stop))
+    biased = dataclasses.replace(GAIT, joints=[JointGait(joint=9, bias_deg=-OFFSET_DEG)])
+    np.testing.assert_array_equal(faulty.state, simulate(scenario=Scenario(gait=biased, stop=stop)).state)
+    last = faulty.t >= faulty.t[-1] / 2 - 1e-9  # the second gait period: the servos' integrators have settled more
+    plain = simulate(scenario=Scenario(gait=GAIT, stop=stop))
+    moved = np.degrees((faulty.q[last] - plain.q[last]).mean(axis=0))
+    assert -OFFSET_DEG <= moved[8] < -0.7 * OFFSET_DEG  # the servo's own tracking error keeps part of it
+
+
+@pytest.mark.parametrize("truth_model", ["drake", "reference"])
+def test_a_synthesized_fault_is_in_the_readings_and_a_replay_with_it_fits_as_a_fault_free_one(tmp_path, truth_model):
+    """Noise-free, the faulty potentiometer reads what the command asks (drake: about as well as a sound one;
+    reference: exactly); replayed with the offset, the trial ends as near its measured end as the same trial made
+    without the fault does, and clearly nearer than replayed without it."""
+    silent = dataclasses.replace(Noise().scaled(0.0), camera_dropout=0.0)
+    trials = {}
+    for offset in (0.0, OFFSET_DEG):
+        folder = tmp_path / f"offset_{offset:g}"
+        synthesize_campaign(folder, design=[Case([], 1, gait=GAIT)], effects={"potentiometer_offset_j9_deg": offset},
+                            noise=silent, variation=Variation(0.0, 0.0, 0.0), truth_model=truth_model,
+                            stop=Stop(line_x_m=None, revolutions=None, time_limit_s=3.0))
+        trials[offset] = load_campaign(folder).trials[0]
+    faulty = trials[OFFSET_DEG]
+    command = np.array([serpenoid(t, faulty.gait)[0][8] for t in faulty.t - faulty.t[0]])
+    reads = {k: math.degrees(np.sqrt(np.mean((trial.q[:, 8] - command) ** 2))) for k, trial in trials.items()}
+    assert reads[OFFSET_DEG] < (reads[0.0] + 0.3 if truth_model == "drake" else 1e-6)
+
+    def miss(trial, offset):
+        run = Replayer(trial).run(Friction(), {"potentiometer_offset_j9_deg": offset})
+        return float(np.hypot(*(run.head_xy[-1] - trial.final_head_xy)))
+
+    fault_free, corrected, uncorrected = miss(trials[0.0], 0.0), miss(faulty, OFFSET_DEG), miss(faulty, 0.0)
+    if truth_model == "drake":  # the replay's own model: as near as without the fault
+        assert corrected < fault_free + 0.003
+    assert corrected < 0.02  # the replay's own miss on 3 s of data it did not make is ~2 cm at worst
+    assert uncorrected > 3.0 * corrected
+
+
+def test_the_library_names_a_sensor_fault_per_joint():
+    faults = [e for e in LIBRARY.values() if e.sensor]
+    assert [e.name for e in faults] == [f"potentiometer_offset_j{j}" for j in range(1, 14)]
+    assert all(e.seen_in_replay and not e.differentiable for e in faults)
