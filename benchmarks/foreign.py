@@ -1,16 +1,21 @@
-"""Data this model did not make: compare on campaigns made by the independent model, against that model's floor.
+"""Data this model did not make: compare, identify and diagnose on campaigns made by the independent model.
 
-    python benchmarks/foreign.py [--seeds 2] [--design nonex2,J7x2,J13x2,J7b-0.9x2] [--record-after-s 0,1]
-                                 [--workers 2] [--out benchmarks/out/foreign.jsonl] [--readme]
+    python benchmarks/foreign.py [--seeds 2] [--diagnose-seeds 6] [--only compare,identify,diagnose]
+                                 [--record-after-s 0,1] [--workers 2] [--out benchmarks/out/foreign.jsonl] [--readme]
 
-Per seed and recording start, a campaign of 10 s line trials is made by reference.py (kinematic joints as the
-paper drives them, the head at rest at its start, its own limit model, default sensor noise; no hidden effect)
-and recorded from the robot's start or some seconds into the motion. `rc1 compare` scores it with the replay's
-start at the protocol's rest convention and fitted to the data (`--start fit`). The floor is what the truth
-model itself gives from the same data: reference.py driven by the replay's own smoothed angles
-(replay.joint_reference), from the head at rest, scored by Eq. 6 alike. A replay cannot beat its noisy input,
-so the issue's bar is the floor x 1.5. (For a late recording the truth's start is not at rest and has no floor.)
-A row per campaign streams to --out (rerunning resumes); --readme writes the table into README.md.
+reference.py makes the campaigns: kinematic joints as the paper drives them, the head at rest at its start, its own
+limit model, default sensor noise. Each section puts it beside what the project's own model (synthesize's drake
+truth) gives, seed for seed, or beside that model's floor:
+
+- compare: 10 s line trials (none, J7, J13, J7 with a -0.9 deg bias; two each), no hidden effect, recorded from the
+  robot's start and some seconds into its motion, scored with the replay's start at rest and fitted. The floor is
+  the truth model itself driven by the replay's smoothed angles (replay.joint_reference), from the head at rest:
+  no replay can beat its noisy input, and issue 28's bar is 1.5x the floor. (A late recording has no floor.)
+- identify: the program fit (screened, from the paper's manual values) on 3 s identification-design campaigns.
+- diagnose: 3 s `none,J7x2` campaigns, friction held, with no effect, a 1.5 deg wheel toe, and joint 9's
+  potentiometer reading 2 deg high (candidates physical,sensor), as benchmarks/diagnosis.py runs them.
+
+A row per campaign streams to --out (rerunning resumes); --readme writes the tables into README.md.
 """
 
 import argparse
@@ -23,15 +28,21 @@ from pathlib import Path
 
 import numpy as np
 
-from diagnosis import parse_design
+import diagnosis
 from rc1_drake.compare import compare_campaign, simulator_error
-from rc1_drake.config import Failure, Friction, Scenario, Start, Stop
+from rc1_drake.config import FRICTION_NAMES, Failure, Friction, Scenario, Start, Stop
 from rc1_drake.executor import make_executor
 from rc1_drake.gait import serpenoid
+from rc1_drake.identify import PAPER_MANUAL, CampaignResiduals, fit_program, screen, uncertainty
 from rc1_drake.measurements import load_campaign
-from rc1_drake.synthesize import synthesize_campaign
+from rc1_drake.synthesize import IDENTIFICATION_DESIGN, synthesize_campaign
 
-DESIGN = "nonex2,J7x2,J13x2,J7b-0.9x2"
+COMPARE_DESIGN = "nonex2,J7x2,J13x2,J7b-0.9x2"
+MODELS = ("drake", "reference")
+# (hidden effect or None, strength as a multiple of diagnosis.REFERENCE's, candidate set)
+DIAGNOSE_CASES = ((None, 0.0, "physical"), ("wheel_toe", 1.0, "physical"),
+                  (None, 0.0, "physical,sensor"), ("potentiometer_offset_j9", 1.0, "physical,sensor"))
+SECTIONS = ("compare", "identify", "diagnose")
 README = Path(__file__).resolve().parents[1] / "README.md"
 BEGIN = "<!-- foreign-table: written by benchmarks/foreign.py --readme -->"
 END = "<!-- foreign-table end -->"
@@ -59,88 +70,166 @@ def floor_error(trial) -> float:
     return simulator_error(run.head_xy[-1], trial.final_head_xy, trial.initial_head_pose[:2])
 
 
-def one(design: str, seed: int, record_after_s: float, workers: int) -> dict:
+def compare_row(seed: int, record_after_s: float, workers: int) -> dict:
     with tempfile.TemporaryDirectory() as tmp:
-        synthesize_campaign(tmp, design=parse_design(design), seed=seed, truth_model="reference",
+        synthesize_campaign(tmp, design=diagnosis.parse_design(COMPARE_DESIGN), seed=seed, truth_model="reference",
                             record_after_s=record_after_s, stop=Stop(revolutions=None, time_limit_s=10.0))
         campaign = load_campaign(tmp)
-        start = time.perf_counter()
         reports = {mode: compare_campaign(campaign, workers=workers, start=mode) for mode in ("rest", "fit")}
         floors = [math.nan] * len(campaign.trials)
         if record_after_s == 0.0:
             with make_executor(workers=workers) as pool:
                 floors = list(pool.map(floor_error, campaign.trials))
-    trials = [{"trial": r.trial_id, "case": r.case, "outcome": r.outcome, "floor": f,
-               **{mode: reports[mode].trials[k].eq6_error_pct for mode in reports}}
-              for k, (r, f) in enumerate(zip(reports["rest"].trials, floors, strict=True))]
-    return {"design": design, "seed": seed, "record_after_s": record_after_s, "trials": trials,
-            "wall_s": time.perf_counter() - start}
+    return {"trials": [{"trial": r.trial_id, "case": r.case, "outcome": r.outcome, "floor": f,
+                        **{mode: reports[mode].trials[k].eq6_error_pct for mode in reports}}
+                       for k, (r, f) in enumerate(zip(reports["rest"].trials, floors, strict=True))]}
 
 
-def table(rows: list) -> str:
-    """Mean Eq. 6 per recording start and case (markdown), over every seed's trials."""
+def identify_row(seed: int, truth_model: str, workers: int) -> dict:
+    with tempfile.TemporaryDirectory() as tmp, make_executor(workers=workers) as executor:
+        synthesize_campaign(tmp, design=IDENTIFICATION_DESIGN, seed=seed, truth_model=truth_model,
+                            stop=Stop(line_x_m=None, revolutions=None, time_limit_s=3.0))
+        residuals = CampaignResiduals(load_campaign(tmp).trials, executor=executor)
+        parameters = screen(residuals, PAPER_MANUAL)[0]
+        fit = fit_program(residuals, start=PAPER_MANUAL, parameters=parameters)
+        spread = uncertainty(residuals, fit.friction)
+    held = {p.name for p in parameters if p.frozen}
+    return {"coefficients": {n: {"value": v, "se": se, "fitted": n not in held}
+                             for n, v, se in zip(spread.names, spread.values, spread.standard_errors, strict=True)}}
+
+
+def diagnose_row(seed: int, truth_model: str, hidden, strength: float, candidates: str, workers: int) -> dict:
+    row = diagnosis.one(hidden, strength, seed, 3.0, workers, FRICTION_NAMES, diagnosis.DESIGN, truth_model,
+                        candidates=candidates)
+    return {k: row[k] for k in ("verdict", "accepted", "first", "inside_interval", "estimate", "simulations")}
+
+
+def jobs(args) -> list:
+    out = []
+    if "compare" in args.only:
+        out += [("compare", s, r) for r in args.record_after_s for s in range(args.seeds)]
+    if "identify" in args.only:
+        out += [("identify", s, m) for m in MODELS for s in range(args.seeds)]
+    if "diagnose" in args.only:
+        out += [("diagnose", s, m, *case) for case in DIAGNOSE_CASES for m in MODELS for s in range(args.diagnose_seeds)]
+    return out
+
+
+def run(job, workers: int) -> dict:
+    section, *rest = job
+    function = {"compare": compare_row, "identify": identify_row, "diagnose": diagnose_row}[section]
+    start = time.perf_counter()
+    row = function(*rest, workers)
+    return {"job": list(job), **row, "wall_s": time.perf_counter() - start}
+
+
+def compare_table(rows: list) -> str:
     groups: dict = {}
     for row in rows:
+        late = row["job"][2]
         for trial in row["trials"]:
-            groups.setdefault((row["record_after_s"], trial["case"]), []).append(trial)
-        for trial in row["trials"]:
-            groups.setdefault((row["record_after_s"], "all trials"), []).append(trial)
-    seeds = sorted({row["seed"] for row in rows})
-    lines = [f"Eq. 6 error, mean over seeds {', '.join(map(str, seeds))} (no hidden effect; the floor: the truth model "
-             "driven by the same smoothed angles)", "",
+            groups.setdefault((late, trial["case"]), []).append(trial)
+            groups.setdefault((late, "all trials"), []).append(trial)
+    lines = ["Compare: mean Eq. 6 error, no hidden effect (floor: the truth model driven by the same smoothed angles)", "",
              "| recorded | case | trials | start at rest | start fitted | floor | at rest / floor | fitted / floor |",
              "|---|---|---|---|---|---|---|---|"]
     for (late, case), trials in sorted(groups.items(), key=lambda kv: (kv[0][0], kv[0][1] == "all trials", kv[0][1])):
         mean = {k: float(np.mean([t[k] for t in trials])) for k in ("rest", "fit", "floor")}
-        when = "from the start" if late == 0 else f"{late:g} s late"
-        ratio = (lambda k: "-" if not math.isfinite(mean["floor"]) else f"{mean[k] / mean['floor']:.2f}")  # noqa: E731
-        floor = "-" if not math.isfinite(mean["floor"]) else f"{mean['floor']:.2f}%"
-        lines.append(f"| {when} | {case} | {len(trials)} | {mean['rest']:.2f}% | {mean['fit']:.2f}% | {floor} | "
-                     f"{ratio('rest')} | {ratio('fit')} |")
+        has_floor = math.isfinite(mean["floor"])
+        cells = [f"{mean['floor']:.2f}%", f"{mean['rest'] / mean['floor']:.2f}", f"{mean['fit'] / mean['floor']:.2f}"] \
+            if has_floor else ["-", "-", "-"]
+        lines.append(f"| {'from the start' if late == 0 else f'{late:g} s late'} | {case} | {len(trials)} | "
+                     f"{mean['rest']:.2f}% | {mean['fit']:.2f}% | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def identify_table(rows: list) -> str:
+    truth = Friction()
+    lines = ["Identify: the program fit's error against the truth, % per seed (* held at the start: not identifiable)",
+             "", "| coefficient | truth | " + " | ".join(f"made by {m}" for m in MODELS) + " |",
+             "|---|---|" + "---|" * len(MODELS)]
+    for name in FRICTION_NAMES:
+        cells = []
+        for model in MODELS:
+            errors = []
+            for row in sorted((r for r in rows if r["job"][2] == model), key=lambda r: r["job"][1]):
+                c = row["coefficients"][name]
+                errors.append(f"{100 * (c['value'] / getattr(truth, name) - 1):+.0f}{'' if c['fitted'] else '*'}")
+            cells.append(", ".join(errors) or "-")
+        lines.append(f"| {name} | {getattr(truth, name):g} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def diagnose_table(rows: list) -> str:
+    lines = ["Diagnose (3 s `none,J7x2`, friction held): campaigns whose verdict is the whole right answer "
+             "(no_missing_effect; effect_found with the hidden effect alone), then the hidden effect accepted, inside "
+             "its 95% interval, and another effect accepted", "",
+             "| hidden | candidates | " + " | ".join(f"made by {m}" for m in MODELS) + " |",
+             "|---|---|" + "---|" * len(MODELS)]
+    for hidden, strength, candidates in DIAGNOSE_CASES:
+        cells = []
+        for model in MODELS:
+            rs = [r for r in rows if r["job"][2:] == [model, hidden, strength, candidates]]
+            n = len(rs)
+            right = sum(r["verdict"] == ("effect_found" if hidden else "no_missing_effect")
+                        and set(r["accepted"]) == ({hidden} if hidden else set()) for r in rs)
+            wrong = sum(any(a != hidden for a in r["accepted"]) for r in rs)
+            if hidden:
+                found = sum(hidden in r["accepted"] for r in rs)
+                inside = sum(bool(r["inside_interval"]) for r in rs)
+                cells.append(f"right {right}/{n}; found {found}/{n}, in CI {inside}/{n}; wrong {wrong}/{n}")
+            else:
+                cells.append(f"right {right}/{n}; wrong {wrong}/{n}")
+        key, value = diagnosis.REFERENCE[hidden] if hidden else ("none", 0.0)
+        label = "none" if hidden is None else f"{key} = {value * strength:g}"
+        lines.append(f"| {label} | {candidates} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
 
 def write_readme(text: str) -> None:
     readme = README.read_text()
-    if BEGIN not in readme or END not in readme:
-        raise SystemExit(f"{README}: no {BEGIN!r} ... {END!r} markers to write the table between")
     head, rest = readme.split(BEGIN, 1)
     README.write_text(head + BEGIN + "\n" + text + "\n" + END + rest.split(END, 1)[1])
 
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--seeds", type=int, default=2)
-    parser.add_argument("--design", default=DESIGN)
-    parser.add_argument("--record-after-s", default="0,1", help="recording starts, s after the robot's (comma list)")
+    parser.add_argument("--seeds", type=int, default=2, help="campaigns per compare and identify cell")
+    parser.add_argument("--diagnose-seeds", type=int, default=6, help="campaigns per diagnose cell")
+    parser.add_argument("--only", default=",".join(SECTIONS), help=f"sections, a comma list of {', '.join(SECTIONS)}")
+    parser.add_argument("--record-after-s", default="0,1", help="compare's recording starts, s after the robot's")
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--out", type=Path, default=Path("benchmarks/out/foreign.jsonl"))
-    parser.add_argument("--readme", action="store_true", help="write the table into README.md")
+    parser.add_argument("--readme", action="store_true", help="write the tables into README.md")
     args = parser.parse_args()
-    parse_design(args.design)  # a bad design stops here with its one-line error
+    args.only = [s.strip() for s in args.only.split(",")]
+    unknown = [s for s in args.only if s not in SECTIONS]
+    if unknown:
+        raise SystemExit(f"--only: unknown section {unknown[0]!r} (known: {', '.join(SECTIONS)})")
     try:
-        starts = [float(v) for v in args.record_after_s.split(",")]
+        args.record_after_s = [float(v) for v in args.record_after_s.split(",")]
     except ValueError:
         raise SystemExit(f"--record-after-s: cannot read {args.record_after_s!r} (expected seconds such as 0,1)") from None
-    if args.readme and BEGIN not in README.read_text():
-        raise SystemExit(f"{README}: no {BEGIN!r} marker to write the table at")
+    readme = README.read_text()
+    if args.readme and (BEGIN not in readme or END not in readme):
+        raise SystemExit(f"{README}: no {BEGIN!r} ... {END!r} markers to write the tables between")
     args.out.parent.mkdir(parents=True, exist_ok=True)
     done = {}
     if args.out.exists():
         for line in args.out.read_text().splitlines():
             row = json.loads(line)
-            done[(row["design"], row["seed"], row["record_after_s"])] = row
-    jobs = [(args.design, s, r) for r in starts for s in range(args.seeds)]
-    for n, job in enumerate(jobs):
-        if job not in done:
-            done[job] = one(*job, args.workers)
+            done[json.dumps(row["job"])] = row
+    todo = jobs(args)
+    for n, job in enumerate(todo):
+        key = json.dumps(list(job))
+        if key not in done:
+            done[key] = run(job, args.workers)
             with args.out.open("a") as f:
-                f.write(json.dumps(done[job]) + "\n")
-        row = done[job]
-        print(f"[{n + 1}/{len(jobs)}] seed {job[1]}, recorded {job[2]:g} s late: mean Eq. 6 at rest "
-              f"{np.mean([t['rest'] for t in row['trials']]):.2f}%, fitted {np.mean([t['fit'] for t in row['trials']]):.2f}%"
-              f", {row['wall_s']:.0f} s", file=sys.stderr, flush=True)
-    text = table([done[j] for j in jobs])
+                f.write(json.dumps(done[key]) + "\n")
+        print(f"[{n + 1}/{len(todo)}] {' '.join(map(str, job))}: {done[key]['wall_s']:.0f} s", file=sys.stderr, flush=True)
+    rows = [done[json.dumps(list(j))] for j in todo]
+    tables = {"compare": compare_table, "identify": identify_table, "diagnose": diagnose_table}
+    text = "\n\n".join(tables[s]([r for r in rows if r["job"][0] == s]) for s in SECTIONS if s in args.only)
     print(text)
     if args.readme:
         write_readme(text)

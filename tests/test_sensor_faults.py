@@ -106,3 +106,19 @@ def test_the_library_names_a_sensor_fault_per_joint():
     faults = [e for e in LIBRARY.values() if e.sensor]
     assert [e.name for e in faults] == [f"potentiometer_offset_j{j}" for j in range(1, 14)]
     assert all(e.seen_in_replay and not e.differentiable for e in faults)
+
+
+@pytest.mark.slow
+def test_a_diagnosis_asked_for_sensor_faults_names_the_joint_whose_potentiometer_is_off(tmp_path):
+    """A regression example (the rates over seeds: benchmarks/foreign.py, README): joint 9 reading 5 deg high on
+    3 s `none,J7x2` trials. With the physical effects alone the same campaign is ambiguous or unexplained."""
+    from rc1_drake import diagnose as dg
+    from rc1_drake.config import FRICTION_NAMES, Z95
+
+    synthesize_campaign(tmp_path, design=[Case([], 1), Case([7], 2)], effects={"potentiometer_offset_j9_deg": 5.0},
+                        seed=0, stop=Stop(line_x_m=None, revolutions=None, time_limit_s=3.0))
+    result = dg.diagnose(load_campaign(tmp_path), friction=Friction(), held=FRICTION_NAMES, workers=2,
+                         probe_study=False, candidates=["physical", "sensor"])
+    assert result.accepted == ["potentiometer_offset_j9"] and result.verdict == "effect_found", result.rounds[0].table()
+    estimate, se = result.final_coordinates["potentiometer_offset_j9_deg"]
+    assert abs(estimate - 5.0) < Z95 * se, (estimate, se)
