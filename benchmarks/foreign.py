@@ -11,7 +11,7 @@ truth) gives, seed for seed, or beside that model's floor:
   robot's start and some seconds into its motion, scored with the replay's start at rest and fitted. The floor is
   the truth model itself driven by the replay's smoothed angles (replay.joint_reference), from the head at rest:
   no replay can beat its noisy input, and issue 28's bar is 1.5x the floor. (A late recording has no floor.)
-- identify: the program fit (screened, from the paper's manual values) on 3 s identification-design campaigns.
+- identify: the program fit (screened, from the paper's manual values) on 10 s identification-design campaigns.
 - diagnose: 3 s `none,J7x2` campaigns, friction held, with no effect, a 1.5 deg wheel toe, and joint 9's
   potentiometer reading 5 deg high (candidates physical,sensor), as benchmarks/diagnosis.py runs them.
 
@@ -38,6 +38,7 @@ from rc1_drake.measurements import load_campaign
 from rc1_drake.synthesize import IDENTIFICATION_DESIGN, synthesize_campaign
 
 COMPARE_DESIGN = "nonex2,J7x2,J13x2,J7b-0.9x2"
+IDENTIFY_SECONDS = 10.0  # 3 s trials identify at most mu_lat (benchmarks/identification.py)
 MODELS = ("drake", "reference")
 # (hidden effect or None, strength as a multiple of diagnosis.REFERENCE's, candidate set)
 DIAGNOSE_CASES = ((None, 0.0, "physical"), ("wheel_toe", 1.0, "physical"),
@@ -88,7 +89,7 @@ def compare_row(seed: int, record_after_s: float, workers: int) -> dict:
 def identify_row(seed: int, truth_model: str, workers: int) -> dict:
     with tempfile.TemporaryDirectory() as tmp, make_executor(workers=workers) as executor:
         synthesize_campaign(tmp, design=IDENTIFICATION_DESIGN, seed=seed, truth_model=truth_model,
-                            stop=Stop(line_x_m=None, revolutions=None, time_limit_s=3.0))
+                            stop=Stop(line_x_m=None, revolutions=None, time_limit_s=IDENTIFY_SECONDS))
         residuals = CampaignResiduals(load_campaign(tmp).trials, executor=executor)
         parameters = screen(residuals, PAPER_MANUAL)[0]
         fit = fit_program(residuals, start=PAPER_MANUAL, parameters=parameters)
@@ -145,7 +146,8 @@ def compare_table(rows: list) -> str:
 
 def identify_table(rows: list) -> str:
     truth = Friction()
-    lines = ["Identify: the program fit's error against the truth, % per seed (* held at the start: not identifiable)",
+    lines = [f"Identify: the program fit's error against the truth on {IDENTIFY_SECONDS:g} s identification-design campaigns, "
+             "% per seed (* held at the paper's manual value: not identifiable)",
              "", "| coefficient | truth | " + " | ".join(f"made by {m}" for m in MODELS) + " |",
              "|---|---|" + "---|" * len(MODELS)]
     for name in FRICTION_NAMES:

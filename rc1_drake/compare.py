@@ -10,6 +10,7 @@ from typing import List, Optional
 import numpy as np
 
 from .config import START_MODES, Friction
+from .effects import sensor_model
 from .executor import make_executor
 from .measurements import Campaign, Trial
 from .metrics import circle_diameter, revolutions
@@ -106,14 +107,14 @@ def score_trial(trial: Trial, run) -> TrialResult:
     """Compare a replay `run` with the trial's measurements."""
     t = trial.t - trial.t[0]
     inside = t <= run.t[-1] + 1e-9
-    rate_sim = np.interp(t[inside], run.t, run.head_yaw_rate)
+    sensors = sensor_model(run.scenario.effects)  # what the camera and the IMU would report of the run
+    rate_sim = sensors.imu(t[inside], run.t, run.head_yaw_rate)
     rate_residual = trial.head_yaw_rate[inside] - rate_sim
     camera_fit, position_residual = None, None
     cam_diameter = None
     if trial.camera is not None:
         seen = inside & ~np.isnan(trial.camera[:, 0])
-        sim = np.column_stack([np.interp(t[seen], run.t, run.head_xy[:, 0]), np.interp(t[seen], run.t, run.head_xy[:, 1]),
-                               np.interp(t[seen], run.t, np.unwrap(run.head_yaw))])
+        sim = sensors.camera(t[seen], run.t, np.column_stack([run.head_xy, np.unwrap(run.head_yaw)]))
         measured = trial.camera[seen].copy()
         measured[:, 2] = np.unwrap(measured[:, 2])
         camera_fit = {name: fit_percent(measured[:, i], sim[:, i]) for i, name in enumerate(("x", "y", "yaw"))}

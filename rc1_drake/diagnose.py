@@ -152,16 +152,14 @@ def bootstrap_twin(trial, friction, effects, until: float) -> Optional[tuple]:
     line up with the trial's."""
     from .synthesize import noise_free_twin
 
-    twin = noise_free_twin(trial, friction=friction, effects=effects)
+    twin = noise_free_twin(trial, friction=friction, effects=effects, head_at=until)
     if len(twin.t) != len(trial.t):
         return None
-    t = twin.t - twin.t[0]
-    final = np.array([np.interp(until, t, twin.camera[:, i]) for i in (0, 1)])  # the twin's own head there
     camera = None
     if trial.camera is not None:
         camera = twin.camera.copy()
         camera[np.isnan(trial.camera[:, 0])] = np.nan
-    return dataclasses.replace(twin, camera=camera, final_head_xy=final), idf._replayer(trial).angle_noise_rad()
+    return dataclasses.replace(twin, camera=camera), idf._replayer(trial).angle_noise_rad()
 
 
 _TWIN_REPLAYERS: dict = {}  # per worker process: a twin (its id and angles) -> its Replayer, the last few only

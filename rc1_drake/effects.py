@@ -1,12 +1,13 @@
-"""Candidate physical effects beyond the paper's model: a library that a run, a synthesized truth, a fit
-or a diagnosis adds by name.
+"""Candidate effects beyond the paper's model: a library that a run, a synthesized truth, a fit or a diagnosis
+adds by name. Most are physical; the sensor faults (Effect.sensor) leave the robot alone and change what its
+sensors report (SensorModel): the data a truth is measured into, and what a replay is compared with.
 
 A scenario's `effects:` mapping holds parameter values by key (`ground_slope_deg: 3.0`); a missing key
 is 0 (or a setting's default), and every effect at 0 is the paper's model exactly (nested models).
 Each effect is one small class: its parameters (bounds, and whether a fit estimates them or the user
 sets them) and how it changes the model, by editing a ModelSetup (gravity, payload, friction-law
-terms, wheel toe, explicit forces) and, for the commanded gait, the Gait. `register()` adds a user's
-own; README "Missing physics" shows one.
+terms, wheel toe, explicit forces), for the commanded gait, the Gait, and for a sensor fault, the SensorModel.
+`register()` adds a user's own; the README's effects section shows one.
 
 Sign conventions are the README's: world x toward the line, y left, z up; a wheel's +x rolls forward
 (toward the head), +y is its left.
@@ -52,6 +53,27 @@ class ModelSetup:
     extra_forces: List[Callable] = dataclasses.field(default_factory=list)  # f(x) -> (16,) generalized force
 
 
+@dataclasses.dataclass
+class SensorModel:
+    """What the sensors report of a motion, as the sensor faults make it (all at 0: the paper's perfect sensors).
+    Synthesis measures a truth through it; a replay reads the potentiometers back through it and predicts the
+    camera and the IMU through it (identify.trial_residual, compare.score_trial)."""
+
+    angle_offsets_rad: np.ndarray  # (13,) what the potentiometers add to the joint angles
+    camera_delay_s: float = 0.0  # a frame stamped t shows the head at t - delay
+    imu_scale: float = 1.0  # the IMU reports imu_scale * yaw rate + imu_bias
+    imu_bias_rad_s: float = 0.0
+
+    def camera(self, t, run_t, run_xy_yaw) -> np.ndarray:
+        """(len(t), k) the camera's report at sample times t of the run's (run_t, (N, k) head pose columns)."""
+        seen = np.asarray(t, dtype=float) - self.camera_delay_s
+        return np.column_stack([np.interp(seen, run_t, run_xy_yaw[:, i]) for i in range(run_xy_yaw.shape[1])])
+
+    def imu(self, t, run_t, run_yaw_rate) -> np.ndarray:
+        """The IMU's yaw rate at sample times t of the run's."""
+        return self.imu_scale * np.interp(t, run_t, run_yaw_rate) + self.imu_bias_rad_s
+
+
 class Effect:
     """A named physical effect. Subclasses set `name`, `parameters` (the first is the one `--effect
     NAME=VALUE` sets), `summary`, and override `configure` and/or `gait`."""
@@ -73,9 +95,8 @@ class Effect:
         """The gait the joints are commanded to follow, for runs driven by the gait."""
         return gait
 
-    def angle_offsets(self, values: Dict[str, float]) -> Optional[np.ndarray]:
-        """(13,) rad that the potentiometers add to the joint angles they read, or None."""
-        return None
+    def configure_sensors(self, sensors: SensorModel, values: Dict[str, float]) -> None:
+        """Change `sensors` for parameter `values` (a sensor fault's; physical effects leave them)."""
 
     @property
     def main(self) -> EffectParameter:
@@ -244,10 +265,8 @@ class PotentiometerOffset(Effect):
     def coordinate_space(self):
         return [dataclasses.replace(self.main, lower=-self.search_deg, upper=self.search_deg)]
 
-    def angle_offsets(self, values):
-        offsets = np.zeros(NUM_JOINTS)
-        offsets[self.joint - 1] = math.radians(values[self.main.key])
-        return offsets
+    def configure_sensors(self, sensors, values):
+        sensors.angle_offsets_rad[self.joint - 1] += math.radians(values[self.main.key])
 
     def gait(self, gait, values):
         from .gait import serpenoid_parameters
@@ -259,6 +278,30 @@ class PotentiometerOffset(Effect):
         own = next((jg for jg in gait.joints if jg.joint == self.joint), JointGait(joint=self.joint))
         others = [jg for jg in gait.joints if jg.joint != self.joint]
         return dataclasses.replace(gait, joints=[*others, dataclasses.replace(own, bias_deg=bias - offset)])
+
+
+class CameraDelay(Effect):
+    name = "camera_delay"
+    summary = "the overhead camera's clock runs behind the robot's: a frame stamped t shows the head at t - delay"
+    parameters = (EffectParameter("camera_delay_s", -0.5, 0.5, probe=0.05),)
+    sensor = True
+    differentiable = False  # it moves what the camera is predicted to see, not the run
+
+    def configure_sensors(self, sensors, values):
+        sensors.camera_delay_s += values["camera_delay_s"]
+
+
+class ImuFault(Effect):
+    name = "imu_fault"
+    summary = "the head IMU reports (1 + scale error) x yaw rate + a bias common to every trial"
+    parameters = (EffectParameter("imu_scale_error", -0.5, 0.5, probe=0.05),
+                  EffectParameter("imu_bias_rad_s", -0.5, 0.5, probe=0.02))
+    sensor = True
+    differentiable = False
+
+    def configure_sensors(self, sensors, values):
+        sensors.imu_scale *= 1.0 + values["imu_scale_error"]
+        sensors.imu_bias_rad_s += values["imu_bias_rad_s"]
 
 
 LIBRARY: Dict[str, Effect] = {}
@@ -276,7 +319,7 @@ def register(effect: Effect) -> Effect:
 
 for _effect in (GroundSlope(), LateralFrictionAsymmetry(), LongitudinalFrictionAsymmetry(), HeadDrag(),
                 JointCoulombFriction(), StribeckFriction(), WheelToe(), ModulePayload(), ServoLag(),
-                *(PotentiometerOffset(j) for j in range(1, NUM_JOINTS + 1))):
+                *(PotentiometerOffset(j) for j in range(1, NUM_JOINTS + 1)), CameraDelay(), ImuFault()):
     register(_effect)
 
 
@@ -287,7 +330,7 @@ CANDIDATE_GROUPS = {"physical": lambda e: not e.sensor, "sensor": lambda e: e.se
 def candidate_names(names: Optional[List[str]] = None) -> List[str]:
     """Effect names, with the groups expanded; by default the physical effects. The sensor faults are asked for
     (`sensor`): from the motion alone a bend at one joint mimics a toe or a failed joint's dry friction
-    (README, Candidate physical effects), so on by default they would blur what the physics tells."""
+    (docs/findings.md), so on by default they would blur what the physics tells."""
     out = []
     for name in names or ["physical"]:
         if name in CANDIDATE_GROUPS:
@@ -370,14 +413,12 @@ def commanded_gait(gait: Gait, effects: Dict[str, float]) -> Gait:
     return gait
 
 
-def angle_offsets(effects: Dict[str, float]) -> np.ndarray:
-    """(13,) rad: what the potentiometers add to the joint angles they read, by the active sensor faults."""
-    total = np.zeros(NUM_JOINTS)
+def sensor_model(effects: Dict[str, float]) -> SensorModel:
+    """The sensors as the active sensor faults make them."""
+    sensors = SensorModel(angle_offsets_rad=np.zeros(NUM_JOINTS))
     for effect in active(effects):
-        offsets = effect.angle_offsets(effect_values(effects, effect))
-        if offsets is not None:
-            total += offsets
-    return total
+        effect.configure_sensors(sensors, effect_values(effects, effect))
+    return sensors
 
 
 def model_setup(effects: Dict[str, float]) -> ModelSetup:

@@ -15,6 +15,7 @@ from typing import Dict, List, Optional
 import numpy as np
 
 from .config import FRICTION_NAMES, RESIDUAL_SIGMAS, Z95, Friction, Rc1Error
+from .effects import sensor_model
 from .engine import default_engine
 from .engine.session import sensitivity_parameters
 from .executor import make_executor
@@ -293,12 +294,12 @@ def trial_residual(trial, run, until=None) -> np.ndarray:
     keep &= t <= end + 1e-9
     final = run.head_xy[-1] if until is None else np.array([np.interp(end, run.t, run.head_xy[:, i]) for i in (0, 1)])
     parts = [(final - trial.final_head_xy) / RESIDUAL_SIGMAS["final_m"]]
+    sensors = sensor_model(run.scenario.effects)  # what the camera and the IMU would report of the run
     if trial.camera is not None:
         seen = keep & ~np.isnan(trial.camera[:, 0])
-        for i in (0, 1):
-            parts.append((np.interp(t[seen], run.t, run.head_xy[:, i]) - trial.camera[seen, i]) / RESIDUAL_SIGMAS["camera_m"])
+        parts += list(((sensors.camera(t[seen], run.t, run.head_xy) - trial.camera[seen, :2]) / RESIDUAL_SIGMAS["camera_m"]).T)
     else:
-        parts.append((np.interp(t[keep], run.t, run.head_yaw_rate) - trial.head_yaw_rate[keep])
+        parts.append((sensors.imu(t[keep], run.t, run.head_yaw_rate) - trial.head_yaw_rate[keep])
                      / RESIDUAL_SIGMAS["yaw_rate_rad_s"])
     return np.concatenate(parts)
 

@@ -17,7 +17,7 @@ import numpy as np
 from pydrake.trajectories import PiecewisePolynomial
 
 from .config import Failure, Friction, Numerics, Scenario, Servo, Start, Stop
-from .effects import angle_offsets
+from .effects import sensor_model
 from .gait import serpenoid
 from .measurements import Trial
 from .engine import make_session
@@ -46,7 +46,7 @@ class JointReference:
     noise_rad: float  # the potentiometers' noise the smoothing finds (smoothed_samples), pooled over the joints
 
     def less(self, offsets_rad: np.ndarray) -> "JointReference":
-        """The reference of angles read `offsets_rad` (13,) high (effects.angle_offsets): the smoothing is linear
+        """The reference of angles read `offsets_rad` (13,) high (effects.SensorModel): the smoothing is linear
         and reproduces constants, and GCV's choice does not move with them, so it is this one shifted exactly."""
         if not np.any(offsets_rad):
             return self
@@ -134,7 +134,7 @@ class Replayer:
     def run(self, friction: Friction, effects=None, *, sensitivities=()) -> Run:
         """The replay; with `sensitivities` (names, compiled engine) also d state / d parameter (Run.sensitivity)."""
         scenario = replay_scenario(self.trial, friction, effects, self.numerics)
-        offsets = angle_offsets(effects or {})
+        offsets = sensor_model(effects or {}).angle_offsets_rad
         if not offsets.any():
             return self.session.simulate(scenario, initial=self.initial, sensitivities=sensitivities)
         return self._run_following(self.reference.less(offsets), scenario, sensitivities)
@@ -157,7 +157,7 @@ class Replayer:
 
     def run_with_angles(self, friction: Friction, effects, measured_q: np.ndarray) -> Run:
         """A replay from `measured_q` in place of the trial's angles (same samples), this Diagram reused."""
-        reference = joint_reference(self.trial, measured_q).less(angle_offsets(effects or {}))
+        reference = joint_reference(self.trial, measured_q).less(sensor_model(effects or {}).angle_offsets_rad)
         return self._run_following(reference, replay_scenario(self.trial, friction, effects, self.numerics))
 
     def _run_following(self, reference: JointReference, scenario: Scenario, sensitivities=()) -> Run:

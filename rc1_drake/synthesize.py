@@ -16,7 +16,7 @@ import numpy as np
 
 from .config import NUM_JOINTS, TRUTH_MODELS, Failure, Friction, Gait, Numerics, Rc1Error, Scenario, Start, Stop
 from .diagram import build_key
-from .effects import LIBRARY, angle_offsets, commanded_gait
+from .effects import LIBRARY, commanded_gait, sensor_model
 from .measurements import Campaign, Stop as TrialStop, Trial, write_trial
 from .engine import make_session
 
@@ -184,11 +184,12 @@ def _reference_run(scenario: Scenario, record_after_s: float, period: float) -> 
     return run, _recorded(scenario, record_after_s)
 
 
-def noise_free_twin(trial: Trial, *, friction: Friction, effects=None) -> Trial:
+def noise_free_twin(trial: Trial, *, friction: Friction, effects=None, head_at: Optional[float] = None) -> Trial:
     """`trial` as the model (friction, effects) makes it with no sensor noise: the trial's gait, failures,
     start pose and sample times, driven by the servos for the trial's whole duration (whatever its stop
     rule, so that the samples line up with the trial's), with a camera. Replaying the twin shows what the
-    replay itself misses on this kind of motion (diagnose.replay_error)."""
+    replay itself misses on this kind of motion (diagnose.replay_error). head_at: its final position is the head's
+    at that time (s from the start), not at its end."""
     from .gait import serpenoid
     from .kinematics import module_yaws
 
@@ -205,6 +206,9 @@ def noise_free_twin(trial: Trial, *, friction: Friction, effects=None) -> Trial:
     run = make_session(scenario).simulate(scenario)
     silent = dataclasses.replace(Noise().scaled(0.0), camera_dropout=0.0)
     twin = _measure(run, scenario, trial.trial_id, silent, np.random.default_rng(0), True, period)
+    if head_at is not None:  # the head itself, not what a camera with a fault would show of it
+        twin = dataclasses.replace(twin, final_head_xy=np.array([np.interp(head_at, run.t, run.head_xy[:, i])
+                                                                 for i in (0, 1)]))
     return dataclasses.replace(twin, notes=f"noise-free twin of {trial.trial_id}")
 
 
@@ -224,14 +228,17 @@ def _measure(run, scenario, trial_id, noise: Noise, rng, camera, period) -> Tria
     on_grid = np.abs(run.t / period - np.round(run.t / period)) < 1e-6  # drop the off-grid stop instant
     t = run.t[on_grid]
     n = len(t)
-    q = run.q[on_grid] + angle_offsets(scenario.effects) + rng.normal(0, math.radians(noise.potentiometer_deg), (n, 13))
+    sensors = sensor_model(scenario.effects)  # the sensor faults, before the noise
+    q = run.q[on_grid] + sensors.angle_offsets_rad + rng.normal(0, math.radians(noise.potentiometer_deg), (n, 13))
     for f in scenario.failures:
         q[:, f.joint - 1] = np.nan
-    rate = run.head_yaw_rate[on_grid] + rng.normal(0, noise.imu_bias_rad_s) + rng.normal(0, noise.imu_rad_s, n)
+    rate = (sensors.imu(t, run.t, run.head_yaw_rate) + rng.normal(0, noise.imu_bias_rad_s)
+            + rng.normal(0, noise.imu_rad_s, n))
     cam = None
     if camera:
-        cam = np.column_stack([run.head_xy[on_grid] + rng.normal(0, noise.camera_m, (n, 2)),
-                               run.head_yaw[on_grid] + rng.normal(0, math.radians(noise.camera_yaw_deg), n)])
+        pose = sensors.camera(t, run.t, run.state[:, :3])
+        cam = np.column_stack([pose[:, :2] + rng.normal(0, noise.camera_m, (n, 2)),
+                               pose[:, 2] + rng.normal(0, math.radians(noise.camera_yaw_deg), n)])
         cam[rng.random(n) < noise.camera_dropout] = np.nan
     if run.stop_reason == "crossed":
         stop = TrialStop("line", scenario.stop.line_x_m)
