@@ -12,8 +12,8 @@ truth) gives, seed for seed, or beside that model's floor:
   the truth model itself driven by the replay's smoothed angles (replay.joint_reference), from the head at rest:
   no replay can beat its noisy input, and issue 28's bar is 1.5x the floor. (A late recording has no floor.)
 - identify: the program fit (screened, from the paper's manual values) on 10 s identification-design campaigns.
-- diagnose: 3 s `none,J7x2` campaigns, friction held, with no effect, a 1.5 deg wheel toe, and joint 9's
-  potentiometer reading 5 deg high (candidates physical,sensor), as benchmarks/diagnosis.py runs them.
+- diagnose: 3 s `none,J7x2` campaigns, friction held, with no effect, a 1.5 deg wheel toe, joint 9's potentiometer
+  reading 5 deg high and camera frames stamped 0.1 s late, as benchmarks/diagnosis.py runs them.
 
 A row per campaign streams to --out (rerunning resumes); --readme writes the tables into README.md.
 """
@@ -42,7 +42,8 @@ IDENTIFY_SECONDS = 10.0  # 3 s trials identify at most mu_lat (benchmarks/identi
 MODELS = ("drake", "reference")
 # (hidden effect or None, strength as a multiple of diagnosis.REFERENCE's, candidate set)
 DIAGNOSE_CASES = ((None, 0.0, "physical"), ("wheel_toe", 1.0, "physical"),
-                  (None, 0.0, "physical,sensor"), ("potentiometer_offset_j9", 2.5, "physical,sensor"))
+                  (None, 0.0, "physical,sensor"), ("potentiometer_offset_j9", 2.5, "physical,sensor"),
+                  ("camera_delay", 1.0, "physical"), ("camera_delay", 1.0, "physical,sensor"))
 SECTIONS = ("compare", "identify", "diagnose")
 README = Path(__file__).resolve().parents[1] / "README.md"
 BEGIN = "<!-- foreign-table: written by benchmarks/foreign.py --readme -->"
