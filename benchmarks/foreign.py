@@ -125,6 +125,11 @@ def run(job, workers: int) -> dict:
     return {"job": list(job), **row, "wall_s": time.perf_counter() - start}
 
 
+def _seeds(rows: list) -> str:
+    seeds = sorted({row["job"][1] for row in rows})
+    return f"seeds {seeds[0]}-{seeds[-1]}" if seeds == list(range(seeds[0], seeds[-1] + 1)) else f"seeds {seeds}"
+
+
 def compare_table(rows: list) -> str:
     groups: dict = {}
     for row in rows:
@@ -132,7 +137,8 @@ def compare_table(rows: list) -> str:
         for trial in row["trials"]:
             groups.setdefault((late, trial["case"]), []).append(trial)
             groups.setdefault((late, "all trials"), []).append(trial)
-    lines = ["Compare: mean Eq. 6 error, no hidden effect (floor: the truth model driven by the same smoothed angles)", "",
+    lines = [f"Compare ({_seeds(rows)}): mean Eq. 6 error, no hidden effect (floor: the truth model driven by the same "
+             "smoothed angles)", "",
              "| recorded | case | trials | start at rest | start fitted | floor | at rest / floor | fitted / floor |",
              "|---|---|---|---|---|---|---|---|"]
     for (late, case), trials in sorted(groups.items(), key=lambda kv: (kv[0][0], kv[0][1] == "all trials", kv[0][1])):
@@ -147,8 +153,8 @@ def compare_table(rows: list) -> str:
 
 def identify_table(rows: list) -> str:
     truth = Friction()
-    lines = [f"Identify: the program fit's error against the truth on {IDENTIFY_SECONDS:g} s identification-design campaigns, "
-             "% per seed (* held at the paper's manual value: not identifiable)",
+    lines = [f"Identify ({_seeds(rows)}): the program fit's error against the truth on {IDENTIFY_SECONDS:g} s "
+             "identification-design campaigns, % per seed (* held at the paper's manual value: not identifiable)",
              "", "| coefficient | truth | " + " | ".join(f"made by {m}" for m in MODELS) + " |",
              "|---|---|" + "---|" * len(MODELS)]
     for name in FRICTION_NAMES:
@@ -164,7 +170,7 @@ def identify_table(rows: list) -> str:
 
 
 def diagnose_table(rows: list) -> str:
-    lines = ["Diagnose (3 s `none,J7x2`, friction held): campaigns whose verdict is the whole right answer "
+    lines = [f"Diagnose ({_seeds(rows)}; 3 s `none,J7x2`, friction held): campaigns whose verdict is the whole right answer "
              "(no_missing_effect; effect_found with the hidden effect alone), then the hidden effect accepted, inside "
              "its 95% interval, and another effect accepted", "",
              "| hidden | candidates | " + " | ".join(f"made by {m}" for m in MODELS) + " |",
