@@ -49,7 +49,7 @@ import numpy as np
 
 from . import identify as idf
 from .config import FRICTION_NAMES, Z95, Friction
-from .effects import LIBRARY, active, candidate_names, effect_values
+from .effects import LIBRARY, active, candidate_names, effect_values, potentiometer_faults
 from .engine import default_engine
 
 P_ACCEPT = 2.7e-3  # Wald test of a candidate's parameters against 0: |z| > 3 for one parameter
@@ -709,7 +709,7 @@ def diagnose(campaign, *, friction: Optional[Friction] = None, effects=None, can
              probe_study=True, progress=None) -> Diagnosis:
     """The loop of the module docstring on `campaign` (its `trials`, all by default), from the model
     (`friction`, `effects`); `candidates` are effect names or groups (effects.candidate_names; by default the
-    physical effects); the friction
+    physical effects, and the potentiometer faults of joints whose readings pass their limit); the friction
     coefficients named in `held` stay at their values (no replays spent on them)."""
     from .executor import make_executor
 
@@ -718,6 +718,8 @@ def diagnose(campaign, *, friction: Optional[Friction] = None, effects=None, can
     chosen = idf.choose_trials(campaign, trials)
     effects = dict(effects or {})
     names = candidate_names(candidates)
+    if candidates is None:  # readings past a joint's limit point at its potentiometer (measurements.limit_warnings)
+        names += potentiometer_faults(sorted({j for t in chosen for j in t.beyond_limit}))
     not_detectable = []
     for n in names:
         if not LIBRARY[n].seen_in_replay:

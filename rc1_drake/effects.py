@@ -246,10 +246,13 @@ class ServoLag(Effect):
 
 
 class PotentiometerOffset(Effect):
-    """A sensor fault: one joint's potentiometer reads its angle plus a constant offset (a misaligned horn or
-    a shifted zero). The servo closes its loop on that reading, so a gait-driven joint settles at the command
-    minus the offset (Eq. 7's bias B_i moved by -offset) while the data show the command; a replay follows the
-    measured angles minus the offset. One effect per joint, so that a diagnosis names the joint."""
+    """A sensor fault: one joint's potentiometer reads its angle plus a constant offset. RC1 records the servos'
+    own potentiometers (paper section 2), so the fault sits either in the servo's loop (a shifted potentiometer:
+    the servo drives the reading to the command, the joint settles at the command minus the offset, Eq. 7's
+    bias B_i moved by -offset, and the data show the command) or only in the data acquisition (its calibration:
+    the joint follows the command and the data read it plus the offset, past the joint limit at the wave's
+    peaks). A replay follows the measured angles minus the offset either way. One effect per joint, so that a
+    diagnosis names the joint."""
 
     sensor = True
     differentiable = False  # it moves the gait command and the replay's reference, not the model's parameters
@@ -258,21 +261,32 @@ class PotentiometerOffset(Effect):
         self.joint = joint
         self.name = f"potentiometer_offset_j{joint}"
         self.summary = f"joint {joint}'s potentiometer reads the angle plus a constant offset (sensor fault)"
-        self.parameters = (EffectParameter(f"potentiometer_offset_j{joint}_deg", -10.0, 10.0, probe=1.0),)
+        self.parameters = (EffectParameter(f"potentiometer_offset_j{joint}_deg", -10.0, 10.0, probe=1.0),
+                           # 1: in the servo's loop (the robot moves off its command); 0: in the acquisition only
+                           EffectParameter(f"potentiometer_offset_j{joint}_in_servo_loop", 0.0, 1.0, fitted=False,
+                                           default=1.0))
 
     search_deg = 5.0  # a diagnosis searches offsets a calibration could have missed (a few degrees)
 
     def coordinate_space(self):
         return [dataclasses.replace(self.main, lower=-self.search_deg, upper=self.search_deg)]
 
+    def _in_loop(self, values) -> bool:
+        setting = values[self.parameters[1].key]
+        if setting not in (0.0, 1.0):
+            raise Rc1Error(f"effects.{self.parameters[1].key}: must be 1 (the servo's loop) or 0 (the acquisition "
+                           f"only), got {setting}")
+        return setting == 1.0
+
     def configure_sensors(self, sensors, values):
+        self._in_loop(values)
         sensors.angle_offsets_rad[self.joint - 1] += math.radians(values[self.main.key])
 
     def gait(self, gait, values):
         from .gait import serpenoid_parameters
 
         offset = values[self.main.key]
-        if offset == 0.0:
+        if offset == 0.0 or not self._in_loop(values):
             return gait
         bias = math.degrees(serpenoid_parameters(gait)[3][self.joint - 1])
         own = next((jg for jg in gait.joints if jg.joint == self.joint), JointGait(joint=self.joint))
@@ -341,6 +355,11 @@ def candidate_names(names: Optional[List[str]] = None) -> List[str]:
             raise ValueError(f"unknown effect '{name}' (known: {', '.join(LIBRARY)}; groups: "
                              f"{', '.join(CANDIDATE_GROUPS)})")
     return list(dict.fromkeys(out))
+
+
+def potentiometer_faults(joints) -> List[str]:
+    """The sensor-fault candidates of these joints' potentiometers (1-based joint numbers)."""
+    return [e.name for e in LIBRARY.values() if isinstance(e, PotentiometerOffset) and e.joint in set(joints)]
 
 
 def parameter_owner(key: str) -> Optional[Effect]:

@@ -171,3 +171,37 @@ def test_a_diagnosis_asked_for_sensor_faults_finds_a_late_camera_the_physics_can
     assert abs(estimate - 0.1) < Z95 * se, (estimate, se)
     physics = dg.diagnose(campaign, friction=Friction(), held=FRICTION_NAMES, workers=2, probe_study=False)
     assert physics.accepted == [], physics.explanation
+
+
+def test_an_offset_in_the_acquisition_only_leaves_the_robot_alone_and_reads_past_the_limit(tmp_path):
+    from rc1_drake.config import Rc1Error
+
+    acquisition = {"potentiometer_offset_j9_deg": OFFSET_DEG, "potentiometer_offset_j9_in_servo_loop": 0.0}
+    assert commanded_gait(GAIT, acquisition) == GAIT
+    silent = dataclasses.replace(Noise().scaled(0.0), camera_dropout=0.0)
+    synthesize_campaign(tmp_path / "c", design=[Case([], 1)], effects={"potentiometer_offset_j9_deg": 5.0,
+                        "potentiometer_offset_j9_in_servo_loop": 0.0}, noise=silent, seed=1,
+                        stop=Stop(line_x_m=None, revolutions=None, time_limit_s=2.0))
+    campaign = load_campaign(tmp_path / "c")
+    assert [w.split("'")[0] for w in campaign.warnings()] == ["joint 9"]  # 38 + 5 deg at the wave's peaks
+    with pytest.raises(Rc1Error, match="potentiometer_offset_j9_in_servo_loop: must be 1 .* or 0"):
+        commanded_gait(GAIT, {"potentiometer_offset_j9_deg": 1.0, "potentiometer_offset_j9_in_servo_loop": 0.5})
+
+
+@pytest.mark.slow
+def test_readings_past_a_joint_limit_put_that_potentiometer_among_the_candidates_and_it_is_named(tmp_path):
+    """A regression example: joint 9's acquisition reads 5 deg high (the robot is sound), its readings pass the
+    limit, the loader warns, and the default diagnosis considers that joint's offset beside the physics."""
+    from rc1_drake import diagnose as dg
+    from rc1_drake.config import FRICTION_NAMES, Z95
+
+    synthesize_campaign(tmp_path, design=[Case([], 1), Case([7], 2)], seed=0,
+                        effects={"potentiometer_offset_j9_deg": 5.0, "potentiometer_offset_j9_in_servo_loop": 0.0},
+                        stop=Stop(line_x_m=None, revolutions=None, time_limit_s=3.0))
+    result = dg.diagnose(load_campaign(tmp_path), friction=Friction(), held=FRICTION_NAMES, workers=2,
+                         probe_study=False)
+    names = {c.name for c in result.candidates}
+    assert "potentiometer_offset_j9" in names and not names & {"potentiometer_offset_j8", "potentiometer_offset_j10"}
+    assert result.accepted == ["potentiometer_offset_j9"] and result.verdict == "effect_found", result.rounds[0].table()
+    estimate, se = result.final_coordinates["potentiometer_offset_j9_deg"]
+    assert abs(estimate - 5.0) < Z95 * se, (estimate, se)
