@@ -7,6 +7,7 @@ import dataclasses
 import json
 import os
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -644,11 +645,28 @@ def _jsonable(value):
     return str(value)
 
 
+def _check_outputs(args) -> None:
+    """Rc1Error for an output the command could not write, before it does any work (a long diagnosis must not end
+    in an unwritable path): the folders of --json and --out, and --plots, are created and written to once."""
+    files = {"json": True, "out": args.command != "sweep", "plots": False}  # sweep's --out is a folder
+    folders = [(f"--{name} {getattr(args, name)}", getattr(args, name).parent if is_file else getattr(args, name))
+               for name, is_file in files.items()
+               if isinstance(getattr(args, name, None), Path) and args.command != "synthesize"]
+    for option, folder in folders:
+        try:
+            folder.mkdir(parents=True, exist_ok=True)
+            with tempfile.NamedTemporaryFile(dir=folder):
+                pass
+        except OSError as e:
+            raise Rc1Error(f"{option}: cannot write there ({e.strerror})") from None
+
+
 def main(argv=None) -> int:
     args = make_parser().parse_args(argv)
     if getattr(args, "engine", None):
         use_engine(args.engine)  # batch work and its worker processes follow it
     try:
+        _check_outputs(args)
         return {"run": cmd_run, "synthesize": cmd_synthesize, "compare": cmd_compare, "sweep": cmd_sweep,
                 "identify": cmd_identify, "compensate": cmd_compensate, "effects": cmd_effects,
                 "diagnose": cmd_diagnose}[args.command](args)
