@@ -1,6 +1,6 @@
 """Data this model did not make: compare, identify and diagnose on campaigns made by the independent model.
 
-    python benchmarks/foreign.py [--seeds 2] [--diagnose-seeds 6] [--only compare,identify,diagnose]
+    python benchmarks/foreign.py [--seeds 2] [--diagnose-seeds 10] [--only compare,identify,diagnose]
                                  [--record-after-s 0,1] [--workers 2] [--out benchmarks/out/foreign.jsonl] [--readme]
 
 reference.py makes the campaigns: kinematic joints as the paper drives them, the head at rest at its start, its own
@@ -45,6 +45,9 @@ DIAGNOSE_CASES = ((None, 0.0, "physical"), ("wheel_toe", 1.0, "physical"),
                   (None, 0.0, "physical,sensor"), ("potentiometer_offset_j9", 2.5, "physical,sensor"),
                   ("camera_delay", 1.0, "physical"), ("camera_delay", 1.0, "physical,sensor"))
 SECTIONS = ("compare", "identify", "diagnose")
+# Seeds 0-5 shaped the sensor faults (their search bound, the regression examples in tests/test_sensor_faults.py):
+# the diagnose rates are reported on seeds from here on, which chose nothing.
+DIAGNOSE_FIRST_SEED = 6
 README = Path(__file__).resolve().parents[1] / "README.md"
 BEGIN = "<!-- foreign-table: written by benchmarks/foreign.py --readme -->"
 END = "<!-- foreign-table end -->"
@@ -113,7 +116,8 @@ def jobs(args) -> list:
     if "identify" in args.only:
         out += [("identify", s, m) for m in MODELS for s in range(args.seeds)]
     if "diagnose" in args.only:
-        out += [("diagnose", s, m, *case) for case in DIAGNOSE_CASES for m in MODELS for s in range(args.diagnose_seeds)]
+        out += [("diagnose", s, m, *case) for case in DIAGNOSE_CASES for m in MODELS
+                for s in range(DIAGNOSE_FIRST_SEED, DIAGNOSE_FIRST_SEED + args.diagnose_seeds)]
     return out
 
 
@@ -204,7 +208,7 @@ def write_readme(text: str) -> None:
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=2, help="campaigns per compare and identify cell")
-    parser.add_argument("--diagnose-seeds", type=int, default=6, help="campaigns per diagnose cell")
+    parser.add_argument("--diagnose-seeds", type=int, default=10, help="campaigns per diagnose cell")
     parser.add_argument("--only", default=",".join(SECTIONS), help=f"sections, a comma list of {', '.join(SECTIONS)}")
     parser.add_argument("--record-after-s", default="0,1", help="compare's recording starts, s after the robot's")
     parser.add_argument("--workers", type=int, default=2)
