@@ -17,7 +17,7 @@ how often the best candidate explained only part of the held-out error (not acce
 verdict was the whole right answer (effect_found with the hidden effect alone; no_missing_effect without one).
 --hold-friction holds the friction at the truth, as the tests do (short trials identify no friction
 coefficient). --truth-model reference makes the campaigns with the independent model (reference.py: kinematic
-joints, the head at rest at its start, its own limit model; of the library it expresses the wheel toe only),
+joints, the head at rest at its start, its own limit model; of the library it expresses the wheel toe and the sensor faults),
 --record-after-s starts their recording after the robot did: data this project's model did not make.
 --candidates sensor (or physical,sensor) lets the diagnosis consider the sensor faults, which the reference model
 also makes (potentiometer_offset_j9 hides one).

@@ -182,7 +182,7 @@ def make_parser() -> argparse.ArgumentParser:
                      help="today's model (friction and effects; default: the paper's identified friction, no effect)")
     dgn.add_argument("--candidates", type=_candidates, metavar="NAMES",
                      help="comma-separated effect names or groups to consider: physical (the default), sensor (the "
-                          "potentiometer offsets), or names from rc1 effects")
+                          "sensor faults), or names from rc1 effects")
     dgn.add_argument("--trials", metavar="IDS", help="comma-separated trial ids (default: all)")
     dgn.add_argument("--freeze", action="append", default=[], choices=FRICTION_NAMES, metavar="NAME",
                      help="keep a friction coefficient at the model's value (repeatable; saves its replays)")

@@ -177,9 +177,11 @@ def replay(trial: Trial, friction: Friction, effects=None, numerics=None, *, eng
 
 
 def tracking_rms_deg(run: Run, trial: Trial) -> float:
-    """RMS over working joints and samples of (simulated - measured) joint angle, degrees."""
+    """RMS over working joints and samples of (simulated - measured) joint angle, degrees; the simulated angle as the
+    potentiometers would read it (effects.SensorModel)."""
     working = [j - 1 for j in trial.working_joints]
     t = trial.t - trial.t[0]
     inside = t <= run.t[-1]
-    sim = np.column_stack([np.interp(t[inside], run.t, run.q[:, j]) for j in working])
+    offsets = sensor_model(run.scenario.effects).angle_offsets_rad
+    sim = np.column_stack([np.interp(t[inside], run.t, run.q[:, j]) + offsets[j] for j in working])
     return float(np.degrees(np.sqrt(np.mean((sim - trial.q[inside][:, working]) ** 2))))

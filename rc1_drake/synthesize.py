@@ -91,7 +91,7 @@ def synthesize_campaign(folder, *, design=PAPER_DESIGN, friction=None, effects=N
         raise Rc1Error(f"synthesize: truth model must be one of {', '.join(TRUTH_MODELS)}, got {truth_model!r}")
     if truth_model == "reference" and set(effects or {}) - set(REFERENCE_EFFECTS):
         raise Rc1Error(f"synthesize: the reference truth model can express wheel_toe_deg and the sensor faults "
-                       f"(potentiometer_offset_j<n>_deg) only, not {', '.join(sorted(set(effects) - set(REFERENCE_EFFECTS)))}")
+                       f"(rc1 effects) only, not {', '.join(sorted(set(effects) - set(REFERENCE_EFFECTS)))}")
     if record_after_s < 0 or abs(record_after_s / sample_period_s - round(record_after_s / sample_period_s)) > 1e-9:
         raise Rc1Error(f"synthesize: record_after_s must be a non-negative multiple of the sample period, "
                        f"got {record_after_s}")

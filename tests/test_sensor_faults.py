@@ -12,7 +12,7 @@ from rc1_drake.effects import LIBRARY, commanded_gait, sensor_model
 from rc1_drake.gait import serpenoid, serpenoid_parameters
 from rc1_drake.measurements import load_campaign, load_trial
 from rc1_drake.protocol import simulate
-from rc1_drake.replay import Replayer
+from rc1_drake.replay import Replayer, tracking_rms_deg
 from rc1_drake.smoothing import smoothed_samples
 from rc1_drake.synthesize import Case, Noise, Variation, synthesize_campaign
 
@@ -43,6 +43,8 @@ def test_a_replay_takes_a_known_offset_back_out_of_the_data(engine):
     replayer = Replayer(faulty, engine=engine)
     corrected = replayer.run(Friction(), {"potentiometer_offset_j9_deg": OFFSET_DEG})
     np.testing.assert_allclose(corrected.state, plain.state, atol=1e-8)
+    # Tracking compares the readings with what the faulty potentiometer would read of the replay.
+    assert tracking_rms_deg(corrected, faulty) == pytest.approx(tracking_rms_deg(plain, trial), abs=1e-6)
     uncorrected = replayer.run(Friction())  # the replayer goes back to the data as read (up to the joint limit)
     assert 0.7 * OFFSET_DEG < math.degrees(np.mean(uncorrected.q[:, 8] - plain.q[:, 8])) <= OFFSET_DEG
     noisy = replayer.angle_noise(np.random.default_rng(0), 0.004)  # the bootstrap's path corrects alike
