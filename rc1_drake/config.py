@@ -64,6 +64,9 @@ class Servo:
     ki_Nm_per_rad_s: float = 5.0
     kd_Nm_s_per_rad: float = 0.2
     torque_limit_Nm: Optional[float] = None  # None: the SDF's effort limit
+    # The proportional term acts on the reference predicted this far ahead, theta + lead theta_dot; with the
+    # lead one time step and a stiff Kp the joint is the paper's kinematic joint (replay.REPLAY_SERVO).
+    lead_s: float = 0.0
 
 
 @dataclasses.dataclass

@@ -279,9 +279,8 @@ def trial_residual(trial, run, until=None) -> np.ndarray:
     head's x and y where the camera saw it, or its yaw rate when the trial has no camera.
 
     Why not both: the replayed yaw rate differs from a noise-free truth's by ~0.05 rad/s RMS whatever
-    the friction (stiff replay servos are not the robot's servos, and the smoothed potentiometer noise
-    shakes the head), so with a camera that channel adds systematic error that biases the fit more than
-    it informs it; the camera's positions match to ~2 mm at the true coefficients (measured on a 3 s
+    the friction (the smoothed potentiometer noise shakes the head), so with a camera that channel adds
+    systematic error that biases the fit more than it informs it; the camera's positions match to ~2 mm at the true coefficients (measured on a 3 s
     joint-7 trial).
 
     `until`: the residuals of the run up to that time (s from the start; the final position there), in

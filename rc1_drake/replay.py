@@ -1,8 +1,7 @@
 """Replay: the model driven by a trial's measured joint angles, as the paper does (section 3).
 
-Working joints follow the measured potentiometer angles; failed joints are free (their
-potentiometers are dead). The paper drives working joints kinematically; here stiff servos with no
-torque limit to speak of follow a reference, which comes to the same (tests: tracking RMS < 0.5 deg).
+Working joints follow the measured potentiometer angles kinematically, as the paper drives them; failed
+joints are free (their potentiometers are dead). REPLAY_SERVO makes a servo a kinematic joint.
 
 Measured angles are noisy. Each working joint's samples are smoothed by a penalized cubic smoothing
 spline whose smoothing weight is chosen by generalized cross-validation (smoothing.py), which also
@@ -12,6 +11,7 @@ the sample times.
 
 import dataclasses
 import functools
+import math
 
 import numpy as np
 from pydrake.trajectories import PiecewisePolynomial
@@ -25,13 +25,11 @@ from .protocol import Run, rest_state
 from .smoothing import smoothed_samples
 from .start import StartEstimate, fit_start
 
-# Stiff tracking in place of the paper's kinematic joints. Servo and wheel friction are solved implicitly
-# together (friction.FrictionForces); trials replay alike at 0.25 and 0.5 ms (Eq. 6 within 0.25%). 1 ms
-# replays no longer chatter (the solve's Newton steps are damped) and end within 1.5 cm of 0.25 ms ones, but
-# the circling joint-2 replays then lose the head drag that 0.5 ms finds (README): 0.5 ms stays. The torque
-# is capped at 3 N m, 2.5 times the real servo's: a measured motion that needs more is inconsistent
-# with the model, and an uncapped servo then jams the chain (seen on a joint-2 failure).
-REPLAY_SERVO = Servo(kp_Nm_per_rad=300.0, ki_Nm_per_rad_s=0.0, kd_Nm_s_per_rad=1.0, torque_limit_Nm=3.0)
+# The paper's kinematic joints (section 3: a working joint follows the measured motion): a servo whose
+# proportional term acts on the reference one step ahead (lead = the time step, set per scenario), stiff
+# enough that the implicit step lands each joint on it (tracking converged from Kp 1e7 at 0.5 ms), with no
+# torque limit: whatever torque the measured motion took, the servo gave.
+REPLAY_SERVO = Servo(kp_Nm_per_rad=1e8, ki_Nm_per_rad_s=0.0, kd_Nm_s_per_rad=0.0, torque_limit_Nm=math.inf)
 REPLAY_NUMERICS = Numerics(time_step_s=5e-4)
 # A trial stopped by a line or a turn ends its data at the last sample before the event: its replay may run
 # this many sample periods past the data (the joints held at their last reference) to reach the event.
@@ -92,9 +90,11 @@ def replay_scenario(trial: Trial, friction: Friction, effects=None, numerics=Non
         stop = Stop(line_x_m=None, revolutions=None, time_limit_s=min(trial.stop.value, end))
     x, y, _ = trial.initial_head_pose
     kwargs = {} if effects is None else {"effects": effects}
-    return Scenario(gait=trial.gait, servo=REPLAY_SERVO, friction=friction,
+    numerics = numerics or REPLAY_NUMERICS
+    servo = dataclasses.replace(REPLAY_SERVO, lead_s=numerics.time_step_s)
+    return Scenario(gait=trial.gait, servo=servo, friction=friction,
                     failures=[Failure(joint=j) for j in trial.failed_joints], start=Start(x_m=float(x), y_m=float(y)),
-                    stop=stop, numerics=numerics or REPLAY_NUMERICS, **kwargs)
+                    stop=stop, numerics=numerics, **kwargs)
 
 
 def replay_initial_state(trial: Trial, reference: JointReference, geometry) -> np.ndarray:

@@ -17,7 +17,7 @@ controller provides.
 from __future__ import annotations
 
 import numpy as np
-from pydrake.systems.primitives import ConstantVectorSource, LinearSystem, Multiplexer
+from pydrake.systems.primitives import ConstantVectorSource, LinearSystem, MatrixGain, Multiplexer, Saturation
 
 from .config import NUM_JOINTS, Failure, Servo
 from .friction import FAILED, FREE, LOCKED, WORKING
@@ -66,6 +66,22 @@ class FailureSwitch:
         return self._friction.parameters(self._friction.GetMyMutableContextFromRoot(root_context))[FAILED]
 
 
+def _add_kinematic_target(builder, rc1, desired_state_port, lead_s: float):
+    """The target of a kinematic joint (config.Servo.lead_s > 0): the reference lead_s ahead, theta + lead_s theta_dot,
+    within the joint's limits (a reading past a limit is a sensor's, not a place the joint can be driven to)."""
+    n = NUM_JOINTS
+    preview = builder.AddSystem(MatrixGain(np.block([[np.eye(n), lead_s * np.eye(n)], [np.zeros((n, n)), np.eye(n)]])))
+    preview.set_name("kinematic_preview")
+    lower = [j.position_lower_limits()[0] for j in rc1.joints]
+    upper = [j.position_upper_limits()[0] for j in rc1.joints]
+    limits = builder.AddSystem(Saturation(np.concatenate([lower, np.full(n, -np.inf)]),
+                                          np.concatenate([upper, np.full(n, np.inf)])))
+    limits.set_name("kinematic_target")
+    builder.Connect(desired_state_port, preview.get_input_port())
+    builder.Connect(preview.get_output_port(), limits.get_input_port())
+    return limits.get_output_port()
+
+
 def add_servos(builder, rc1, desired_state_port, servo: Servo, time_step: float):
     """Add the PID servos and their power (torque limit) source; returns (servo_power system, command port).
 
@@ -99,6 +115,8 @@ def add_servos(builder, rc1, desired_state_port, servo: Servo, time_step: float)
     # context, so the failure switch changes it per run, and the default context is a working robot.
     power = builder.AddSystem(ConstantVectorSource(rc1.effort_limit))
     power.set_name("servo_power")
+    if servo.lead_s > 0.0:
+        desired_state_port = _add_kinematic_target(builder, rc1, desired_state_port, servo.lead_s)
     builder.Connect(desired_state_port, inputs.get_input_port(0))
     builder.Connect(plant.get_state_output_port(), inputs.get_input_port(1))
     builder.Connect(inputs.get_output_port(), pid.get_input_port())

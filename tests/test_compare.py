@@ -81,20 +81,23 @@ def test_synthesize_command_refuses_to_overwrite(tmp_path, capsys):
     assert "already exists" in capsys.readouterr().err
 
 
-def test_a_replay_reaches_the_line_its_data_ended_just_before():
-    """Data end at the last sample before the line: the replay may run a few periods past them to cross it."""
+def test_a_replay_reaches_the_line_its_data_ended_just_before(tmp_path):
+    """Data end at the last sample before the line: the replay may run a few periods past them to cross it. The
+    trial is made by reference.py without noise, so that the replay itself lands within a sample of the truth."""
     import dataclasses
 
     from rc1_drake.config import Friction
-    from rc1_drake.measurements import load_trial
     from rc1_drake.replay import EVENT_GRACE_SAMPLES, Replayer
+    from rc1_drake.synthesize import Noise, Variation
 
-    trial = load_trial("data/paper_campaign/nominal_1.json")
+    synthesize_campaign(tmp_path, design=[Case([], 1)], truth_model="reference", noise=Noise().scaled(0.0),
+                        variation=Variation(0.0, 0.0, 0.0), stop=Stop(line_x_m=1.0, revolutions=None, time_limit_s=6.0))
+    (trial,) = load_campaign(tmp_path).trials
     assert trial.stop.type == "line"
     keep = slice(0, len(trial.t) - 2)  # two samples fewer: the line is now two samples past the data
     trial = dataclasses.replace(trial, t=trial.t[keep], q=trial.q[keep], head_yaw_rate=trial.head_yaw_rate[keep],
                                 camera=trial.camera[keep])
-    run = Replayer(trial, engine="compiled").run(Friction(), {"wheel_toe_deg": 2.0})  # the campaign's truth
+    run = Replayer(trial, engine="compiled").run(Friction())
     end, period = trial.t[-1] - trial.t[0], trial.t[1] - trial.t[0]
     assert run.stop_reason == "crossed" and end < run.t[-1] <= end + EVENT_GRACE_SAMPLES * period + 1e-9
     assert run.head_xy[-1, 0] == pytest.approx(trial.stop.value, abs=1e-3)
@@ -131,20 +134,28 @@ def test_campaigns_by_another_model_replay_at_20_to_500_hz_with_or_without_a_cam
 
 
 @pytest.mark.parametrize("engine", ["compiled", "drake"])
-def test_a_replays_servos_may_pass_rc1s_torque_up_to_their_own_cap(engine):
-    """A circling joint-2 replay needs more than RC1's 1.19 N m (the SDF's effort limit) to follow its angles: the
-    replay's servos give it, up to their 3 N m cap, and the plant adds no clamp of its own (model.add_rc1_plant)."""
+def test_a_replays_joints_are_kinematic_whatever_torque_that_takes(engine):
+    """A circling joint-2 replay needs more than RC1's 1.19 N m (the SDF's effort limit) to follow its angles: its
+    kinematic joints (the paper's, replay.REPLAY_SERVO) take it, the plant adding no clamp of its own
+    (model.add_rc1_plant), and land on the smoothed reference (within the joint limits)."""
     import dataclasses
 
     from rc1_drake.config import Friction
+    from rc1_drake.engine.dynamics import plant_numbers
     from rc1_drake.measurements import load_trial
-    from rc1_drake.replay import REPLAY_SERVO, Replayer, tracking_rms_deg
+    from rc1_drake.replay import Replayer
 
     trial = load_trial("data/paper_campaign/j2_1.json")
     keep = trial.t - trial.t[0] <= 2.0
     trial = dataclasses.replace(trial, t=trial.t[keep], q=trial.q[keep], head_yaw_rate=trial.head_yaw_rate[keep],
                                 camera=trial.camera[keep])
-    run = Replayer(trial, engine=engine).run(Friction(), {"wheel_toe_deg": 2.0})
-    peak = np.abs(run.servo_torque).max()
-    assert 1.19 + 0.1 < peak <= REPLAY_SERVO.torque_limit_Nm + 1e-9
-    assert tracking_rms_deg(run, trial) < 0.5
+    replayer = Replayer(trial, engine=engine)
+    run = replayer.run(Friction(), {"wheel_toe_deg": 2.0})
+    assert np.abs(run.servo_torque).max() > 1.19 + 0.1
+    numbers = plant_numbers()
+    reference = np.clip(replayer.reference.q[:-1], numbers.lower_limit, numbers.upper_limit)  # the target's clip
+    miss = np.degrees([np.interp(replayer.reference.t[:-1], run.t, run.q[:, j]) - reference[:, j]
+                       for j in (j - 1 for j in trial.working_joints)])
+    # The failed joint's limit stop is solved after the servos within a step: when it strikes, the kinematic
+    # joints give for that one step (0.14 deg here), and are back on the reference at the next.
+    assert np.sqrt(np.mean(miss**2)) < 0.01 and np.abs(miss).max() < 0.25

@@ -69,6 +69,23 @@ def _command(t, x, source, gait, heading, z_heading, breaks, values, rates, segm
 
 
 @jit
+def _servo_target(gains, theta, theta_dot, lower, upper):
+    """What the servo's P and I terms aim at: theta, or for a kinematic joint (lead gains[3] > 0) the reference lead
+    ahead within the joint's limits (servo._add_kinematic_target)."""
+    if gains[3] > 0.0:
+        return np.minimum(np.maximum(theta + gains[3] * theta_dot, lower), upper)
+    return theta
+
+
+@jit
+def _servo_command(gains, z_pid, theta, theta_dot, x, lower, upper):
+    """The servo PID's command Ki z + Kp (target - q) + Kd (theta_dot - q_dot) at state x (servo.add_servos)."""
+    nq = x.shape[0] // 2
+    return (gains[1] * z_pid + gains[0] * (_servo_target(gains, theta, theta_dot, lower, upper) - x[3:nq])
+            + gains[2] * (theta_dot - x[nq + 3:]))
+
+
+@jit
 def _heading_gain(x, heading, z_heading):
     """d(feedback)/d(error) and d/d(z_heading) of the heading controller at x: kp and ki, or 0 where it saturates."""
     if heading[0] == 0.0:
@@ -112,7 +129,7 @@ def advance_run(x, z_pid, z_heading, segment, k0, k1, t_first, dt, extra_force, 
     last_torque); returns (status, k) with k the index of the state x now holds. Failures change params,
     power and locked between calls (session.py), as the failure switch does between AdvanceTo calls.
 
-    gains: [kp, ki, kd];
+    gains: [kp, ki, kd, lead (s)];
     stop: [line x (nan: none), yaw turn (inf: none), yaw_0]; model: [gravity x, y, in plane (0/1)];
     t_first (nan: k0 dt) is the time of the first update (the Simulator's time at a stop between steps).
     Forward sensitivities (P directions, P may be 0): sens (P, 32), sens_z (P, 13) and sens_zh (P,) carry
@@ -126,8 +143,7 @@ def advance_run(x, z_pid, z_heading, segment, k0, k1, t_first, dt, extra_force, 
     for k in range(k0, k1):
         t = k * dt if k > k0 or np.isnan(t_first) else t_first
         theta, theta_dot, error = _command(t, x, source, gait, heading, z_heading, breaks, values, rates, segment)
-        e_pos = theta - x[3:nq]
-        command = gains[1] * z_pid + gains[0] * e_pos + gains[2] * (theta_dot - x[nq + 3:])
+        command = _servo_command(gains, z_pid, theta, theta_dot, x, lower, upper)
         x_next, torque, v_star, force_plus = plant_step(x, dt, params, command, power, servo_gains, extra_force,
                                                         mass, yaw_inertia, com, gravity_xy, in_plane, lower,
                                                         upper, locked, joint_in_parent, joint_in_child, wheel_module,
@@ -141,7 +157,7 @@ def advance_run(x, z_pid, z_heading, segment, k0, k1, t_first, dt, extra_force, 
             if log_times[row] != t:  # a log between two updates: the servo output at its own time
                 theta, theta_dot, _ = _command(log_times[row], x, source, gait, heading, z_heading, breaks, values,
                                                rates, segment)
-                between = gains[1] * z_pid + gains[0] * (theta - x[3:nq]) + gains[2] * (theta_dot - x[nq + 3:])
+                between = _servo_command(gains, z_pid, theta, theta_dot, x, lower, upper)
                 log_torque[row] = plant_step(x, dt, params, between, power, servo_gains, extra_force, mass,
                                              yaw_inertia, com, gravity_xy, in_plane, lower, upper, locked,
                                              joint_in_parent, joint_in_child, wheel_module, wheel_offset,
@@ -155,8 +171,8 @@ def advance_run(x, z_pid, z_heading, segment, k0, k1, t_first, dt, extra_force, 
                               z_heading, dt, params, power, servo_gains, gains, heading, mass, yaw_inertia, com,
                               gravity_xy, in_plane, lower, upper, locked, joint_in_parent, joint_in_child,
                               wheel_module, wheel_offset, wheel_toe)
-        theta, _, error = _command(t, x_next, source, gait, heading, z_heading, breaks, values, rates, segment)
-        z_pid += dt * (theta - x_next[3:nq])
+        theta, theta_dot, error = _command(t, x_next, source, gait, heading, z_heading, breaks, values, rates, segment)
+        z_pid += dt * (_servo_target(gains, theta, theta_dot, lower, upper) - x_next[3:nq])
         z_heading[0] += dt * error
         x[:] = x_next
         if not np.isfinite(x[0]):

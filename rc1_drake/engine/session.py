@@ -208,7 +208,7 @@ class _CompiledRun:
         gravity = setup.gravity
         model = np.array([gravity[0], gravity[1], float(bool(gravity[0] or gravity[1]))])
         s = scenario.servo
-        gains = np.array([s.kp_Nm_per_rad, s.ki_Nm_per_rad_s, s.kd_Nm_s_per_rad])
+        gains = np.array([s.kp_Nm_per_rad, s.ki_Nm_per_rad_s, s.kd_Nm_s_per_rad, s.lead_s])
         self.constant = (self.log_state, self.log_torque, source, gait, heading, *knots, gains, stop_row, model,
                          numbers.masses(setup.payload_module, setup.payload_kg), numbers.central_yaw_inertia,
                          numbers.com, numbers.lower_limit, numbers.upper_limit,
