@@ -54,7 +54,7 @@ def build_key(scenario: Scenario, joint_reference=None) -> tuple:
     else:
         source = ("joint_reference", id(joint_reference))
     s, n = scenario.servo, scenario.numerics
-    return source + (s.kp_Nm_per_rad, s.ki_Nm_per_rad_s, s.kd_Nm_s_per_rad, n.time_step_s, n.log_period_s,
+    return source + (s.kp_Nm_per_rad, s.ki_Nm_per_rad_s, s.kd_Nm_s_per_rad, s.lead_s, n.time_step_s, n.log_period_s,
                      dataclasses.astuple(scenario.heading_control))
 
 

@@ -5,7 +5,8 @@ e_i = theta_i - q_i: a discrete PID sampled at the plant's step (the servo is a 
 torque the plant receives takes the proportional and derivative parts at the step's end (backward
 Euler, solved with the friction in friction.FrictionForces), so the servos are stable at any step.
 e_max_i, the servo's power, is the value of the `servo_power` source (kept in the context):
-1.19 N m (the SDF's effort limit) while the joint works.
+1.19 N m (the SDF's effort limit) while the joint works. A replay's servo is the paper's kinematic joint
+(config.Servo.lead_s > 0, replay.REPLAY_SERVO): e_i is taken to the reference lead_s ahead, within the limits.
 
 The failure switch acts on the context at the failure time: the failed joint's servo power drops to
 zero, so its PID no longer reaches the joint, and the joint's viscous friction c_joint (a parameter
