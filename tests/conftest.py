@@ -44,3 +44,16 @@ def joint7_scenario():
 
 def with_stop(scenario, **kwargs):
     return dataclasses.replace(scenario, stop=dataclasses.replace(scenario.stop, **kwargs))
+
+
+def trial_samples(trial, keep):
+    """`trial` with only the samples `keep` (a mask or a slice) of its time series."""
+    cut = {k: getattr(trial, k)[keep] for k in ("t", "q", "head_yaw_rate")}
+    if trial.camera is not None:
+        cut["camera"] = trial.camera[keep]
+    return dataclasses.replace(trial, **cut)
+
+
+def first_seconds(trial, seconds):
+    """`trial`'s samples up to `seconds` from its start."""
+    return trial_samples(trial, trial.t - trial.t[0] <= seconds)

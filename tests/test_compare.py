@@ -12,6 +12,8 @@ from rc1_drake.config import Stop
 from rc1_drake.measurements import load_campaign
 from rc1_drake.synthesize import Case, synthesize_campaign
 
+from conftest import first_seconds, trial_samples
+
 DESIGN = [Case([], 2), Case([7], 1)]
 SHORT = Stop(line_x_m=None, revolutions=None, time_limit_s=5.0)  # short trials keep the suite fast
 
@@ -84,8 +86,6 @@ def test_synthesize_command_refuses_to_overwrite(tmp_path, capsys):
 def test_a_replay_reaches_the_line_its_data_ended_just_before(tmp_path):
     """Data end at the last sample before the line: the replay may run a few periods past them to cross it. The
     trial is made by reference.py without noise, so that the replay itself lands within a sample of the truth."""
-    import dataclasses
-
     from rc1_drake.config import Friction
     from rc1_drake.replay import EVENT_GRACE_SAMPLES, Replayer
     from rc1_drake.synthesize import Noise, Variation
@@ -94,9 +94,7 @@ def test_a_replay_reaches_the_line_its_data_ended_just_before(tmp_path):
                         variation=Variation(0.0, 0.0, 0.0), stop=Stop(line_x_m=1.0, revolutions=None, time_limit_s=6.0))
     (trial,) = load_campaign(tmp_path).trials
     assert trial.stop.type == "line"
-    keep = slice(0, len(trial.t) - 2)  # two samples fewer: the line is now two samples past the data
-    trial = dataclasses.replace(trial, t=trial.t[keep], q=trial.q[keep], head_yaw_rate=trial.head_yaw_rate[keep],
-                                camera=trial.camera[keep])
+    trial = trial_samples(trial, slice(0, len(trial.t) - 2))  # the line is now two samples past the data
     run = Replayer(trial, engine="compiled").run(Friction())
     end, period = trial.t[-1] - trial.t[0], trial.t[1] - trial.t[0]
     assert run.stop_reason == "crossed" and end < run.t[-1] <= end + EVENT_GRACE_SAMPLES * period + 1e-9
@@ -138,17 +136,12 @@ def test_a_replays_joints_are_kinematic_whatever_torque_that_takes(engine):
     """A circling joint-2 replay needs more than RC1's 1.19 N m (the SDF's effort limit) to follow its angles: its
     kinematic joints (the paper's, replay.REPLAY_SERVO) take it, the plant adding no clamp of its own
     (model.add_rc1_plant), and land on the smoothed reference (within the joint limits)."""
-    import dataclasses
-
     from rc1_drake.config import Friction
     from rc1_drake.engine.dynamics import plant_numbers
     from rc1_drake.measurements import load_trial
     from rc1_drake.replay import Replayer
 
-    trial = load_trial("data/paper_campaign/j2_1.json")
-    keep = trial.t - trial.t[0] <= 2.0
-    trial = dataclasses.replace(trial, t=trial.t[keep], q=trial.q[keep], head_yaw_rate=trial.head_yaw_rate[keep],
-                                camera=trial.camera[keep])
+    trial = first_seconds(load_trial("data/paper_campaign/j2_1.json"), 2.0)
     replayer = Replayer(trial, engine=engine)
     run = replayer.run(Friction(), {"wheel_toe_deg": 2.0})
     assert np.abs(run.servo_torque).max() > 1.19 + 0.1

@@ -23,6 +23,8 @@ from rc1_drake.model import add_rc1_plant, set_payload
 from rc1_drake.protocol import Session
 from rc1_drake.replay import Replayer
 
+from conftest import first_seconds
+
 HORIZON_S = 2.0  # long enough for every effect to show; the Drake runs keep the file to about a minute
 CAMPAIGN = "data/paper_campaign"
 
@@ -115,14 +117,6 @@ def test_log_periods_that_are_not_a_multiple_of_the_step_agree():
     drake, compiled = both(short(every_step, 0.05))
     assert len(drake.t) == 51
     np.testing.assert_allclose(compiled.state, drake.state, atol=1e-9)  # step by step: the same arithmetic
-
-
-def first_seconds(trial, seconds):
-    keep = trial.t - trial.t[0] <= seconds
-    cut = {k: getattr(trial, k)[keep] for k in ("t", "q", "head_yaw_rate")}
-    if trial.camera is not None:
-        cut["camera"] = trial.camera[keep]
-    return dataclasses.replace(trial, **cut)
 
 
 @pytest.mark.parametrize("stem", ["nominal_1", "j2_1", "j7_1", "j13_1", "j7_bias_1"])

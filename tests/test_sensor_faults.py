@@ -16,6 +16,8 @@ from rc1_drake.replay import Replayer, tracking_rms_deg
 from rc1_drake.smoothing import smoothed_samples
 from rc1_drake.synthesize import Case, Noise, Variation, synthesize_campaign
 
+from conftest import first_seconds
+
 CAMPAIGN = "data/paper_campaign"
 OFFSET_DEG = 3.0
 
@@ -32,10 +34,8 @@ def test_the_smoothing_of_a_shifted_signal_is_the_smoothed_signal_shifted():
 
 @pytest.mark.parametrize("engine", ["compiled", "drake"])
 def test_a_replay_takes_a_known_offset_back_out_of_the_data(engine):
-    trial = load_trial(f"{CAMPAIGN}/j7_1.json")
-    keep = trial.t - trial.t[0] <= 1.0
-    trial = dataclasses.replace(trial, t=trial.t[keep], q=trial.q[keep], head_yaw_rate=trial.head_yaw_rate[keep],
-                                camera=trial.camera[keep], stop=dataclasses.replace(trial.stop, type="time", value=1.0))
+    trial = first_seconds(load_trial(f"{CAMPAIGN}/j7_1.json"), 1.0)
+    trial = dataclasses.replace(trial, stop=dataclasses.replace(trial.stop, type="time", value=1.0))
     reads_high = trial.q.copy()
     reads_high[:, 8] += math.radians(OFFSET_DEG)
     faulty = dataclasses.replace(trial, q=reads_high)

@@ -7,6 +7,8 @@ from rc1_drake.engine.dynamics import chain_terms, plant_numbers
 from rc1_drake.engine.tangent import chain_tangent, wheel_local_tangent
 from rc1_drake.kinematics import _wheel_kinematics
 
+from conftest import first_seconds
+
 H = 1e-6
 
 
@@ -134,10 +136,7 @@ def test_run_sensitivities_match_central_differences_of_whole_runs():
     session = CompiledSession()
     run_scenario = Scenario(failures=[Failure(joint=7)], stop=Stop(time_limit_s=0.3),
                             effects={**effects, "ground_slope_deg": 2.0, "ground_slope_direction_deg": 30.0})
-    trial = load_trial("data/paper_campaign/j2_1.json")
-    keep = trial.t - trial.t[0] <= 0.6
-    trial = dataclasses.replace(trial, t=trial.t[keep], q=trial.q[keep], head_yaw_rate=trial.head_yaw_rate[keep],
-                                camera=trial.camera[keep])
+    trial = first_seconds(load_trial("data/paper_campaign/j2_1.json"), 0.6)
     replayer = Replayer(trial, engine="compiled")
     replay = replay_scenario(trial, run_scenario.friction, effects, replayer.numerics)
     every = [n for n in sensitivity_parameters() if not n.startswith("start_")]  # below: the start's own test
