@@ -23,6 +23,7 @@ def test_shipped_scenarios_load():
         ("s:\n  gait: {amplitude_deg: abc}\n", "abc"),
         ("s:\n  numerics: {time_step_s: 0.5}\n", "numerics.time_step_s"),
         ("s:\n  stop: {line_x_m: -1}\n", "stop.line_x_m"),
+        ("s:\n  servo: {lead_s: -0.001}\n", "servo.lead_s: must be >= 0"),
         ("s: [1, 2\n", "not valid YAML"),
     ],
 )
