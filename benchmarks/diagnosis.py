@@ -30,7 +30,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from rc1_drake.config import FRICTION_NAMES, TRUTH_MODELS, Friction, Gait, Stop, Z95
+from rc1_drake.config import FRICTION_NAMES, START_MODES, TRUTH_MODELS, Friction, Gait, Stop, Z95
 from rc1_drake.diagnose import diagnose
 from rc1_drake.effects import LIBRARY, candidate_names, effect_values, parameter
 from rc1_drake.measurements import load_campaign
@@ -75,7 +75,7 @@ REFERENCE = {  # a clearly visible strength on DESIGN's 3 s trials (diagnose.pro
 
 
 def one(effect, strength, seed, seconds, workers, held=(), design=DESIGN, truth_model="drake",
-        record_after_s=0.0, candidates="physical") -> dict:
+        record_after_s=0.0, candidates="physical", start_rates="rest") -> dict:
     effects = {} if effect is None else {REFERENCE[effect][0]: REFERENCE[effect][1] * strength}
     with tempfile.TemporaryDirectory() as tmp:
         synthesize_campaign(tmp, design=parse_design(design), effects=effects, seed=seed, truth_model=truth_model,
@@ -84,7 +84,7 @@ def one(effect, strength, seed, seconds, workers, held=(), design=DESIGN, truth_
         campaign = load_campaign(tmp)
         start = time.perf_counter()
         result = diagnose(campaign, friction=Friction(), workers=workers, probe_study=False, held=held,
-                          candidates=candidates.split(","))
+                          candidates=candidates.split(","), start_rates=start_rates)
     first = result.candidates[0] if result.candidates else None
     inside, estimate = None, None
     if effect is not None:  # the final model's estimate (after every round's refit), in the fitted coordinates
@@ -93,7 +93,8 @@ def one(effect, strength, seed, seconds, workers, held=(), design=DESIGN, truth_
         if estimate:
             inside = all(abs(v - truth[k]) <= Z95 * se for k, (v, se) in estimate.items())
     return {"effect": effect, "strength": strength, "seed": seed, "design": design, "truth_model": truth_model,
-            "record_after_s": record_after_s, "candidates": candidates, "verdict": result.verdict,
+            "record_after_s": record_after_s, "candidates": candidates, "start_rates": start_rates,
+            "verdict": result.verdict,
             "accepted": result.accepted, "first": first.name if first else None, "inside_interval": inside,
             "estimate": estimate,
             "first_round": [[c.name, c.status, c.coordinates, (c.simulated or {}).get("held_out_reduction")]
@@ -118,16 +119,19 @@ def main():
     parser.add_argument("--record-after-s", type=float, default=0.0, help="the recording starts this late")
     parser.add_argument("--candidates", default="physical",
                         help="what the diagnosis considers: physical (default), sensor, or effect names (comma list)")
+    parser.add_argument("--start-rates", choices=START_MODES, default="rest",
+                        help="the trials' head rates at t = 0: rest (the protocol's convention) or fit (nuisance "
+                             "coordinates of every fit)")
     parser.add_argument("--out", type=Path, default=Path("benchmarks/out/diagnosis.jsonl"))
     args = parser.parse_args()
-    made = (args.truth_model, args.record_after_s, args.candidates)
+    made = (args.truth_model, args.record_after_s, args.candidates, args.start_rates)
     args.out.parent.mkdir(parents=True, exist_ok=True)
     done = {}
     if args.out.exists():
         for line in args.out.read_text().splitlines():
             row = json.loads(line)
-            if (row.get("truth_model", "drake"), row.get("record_after_s", 0.0),
-                    row.get("candidates", "physical")) == made:  # a study per truth and candidate set
+            if (row.get("truth_model", "drake"), row.get("record_after_s", 0.0), row.get("candidates", "physical"),
+                    row.get("start_rates", "rest")) == made:  # a study per truth, candidate set and start
                 done[(row["effect"], row["strength"], row["seed"], row.get("design", DESIGN))] = row
     effects = args.effects.split(",")
     unknown = [e for e in effects if e not in REFERENCE]

@@ -14,7 +14,8 @@ truth) gives, seed for seed, or beside that model's floor:
   1.5x the floor. (A late recording has no floor.)
 - identify: the program fit (screened, from the paper's manual values) on 10 s identification-design campaigns.
 - diagnose: 3 s `none,J7x2` campaigns, friction held, with no effect, a 1.5 deg wheel toe, joint 9's potentiometer
-  reading 5 deg high and camera frames stamped 0.1 s late, as benchmarks/diagnosis.py runs them.
+  reading 5 deg high and camera frames stamped 0.1 s late, as benchmarks/diagnosis.py runs them; the null and toe
+  campaigns also with each trial's start fitted beside the physics (`--start-rates fit`).
 
 A row per campaign streams to --out (rerunning resumes); --readme writes the tables into README.md.
 """
@@ -41,10 +42,11 @@ from rc1_drake.synthesize import IDENTIFICATION_DESIGN, synthesize_campaign
 COMPARE_DESIGN = "nonex2,J7x2,J13x2,J7b-0.9x2"
 IDENTIFY_SECONDS = 10.0  # 3 s trials identify at most mu_lat (benchmarks/identification.py)
 MODELS = ("drake", "reference")
-# (hidden effect or None, strength as a multiple of diagnosis.REFERENCE's, candidate set)
-DIAGNOSE_CASES = ((None, 0.0, "physical"), ("wheel_toe", 1.0, "physical"),
-                  (None, 0.0, "physical,sensor"), ("potentiometer_offset_j9", 2.5, "physical,sensor"),
-                  ("camera_delay", 1.0, "physical"), ("camera_delay", 1.0, "physical,sensor"))
+# (hidden effect or None, strength as a multiple of diagnosis.REFERENCE's, candidate set, the trials' start rates)
+DIAGNOSE_CASES = ((None, 0.0, "physical", "rest"), ("wheel_toe", 1.0, "physical", "rest"),
+                  (None, 0.0, "physical", "fit"), ("wheel_toe", 1.0, "physical", "fit"),
+                  (None, 0.0, "physical,sensor", "rest"), ("potentiometer_offset_j9", 2.5, "physical,sensor", "rest"),
+                  ("camera_delay", 1.0, "physical", "rest"), ("camera_delay", 1.0, "physical,sensor", "rest"))
 SECTIONS = ("compare", "identify", "diagnose")
 # Seeds 0-5 shaped the sensor faults (their search bound, the regression examples in tests/test_sensor_faults.py),
 # seeds 6-11 the kinematic replay's joint limits (docs/findings.md): the diagnose rates are reported on seeds from
@@ -105,9 +107,10 @@ def identify_row(seed: int, truth_model: str, workers: int) -> dict:
                              for n, v, se in zip(spread.names, spread.values, spread.standard_errors, strict=True)}}
 
 
-def diagnose_row(seed: int, truth_model: str, hidden, strength: float, candidates: str, workers: int) -> dict:
+def diagnose_row(seed: int, truth_model: str, hidden, strength: float, candidates: str, start_rates: str,
+                 workers: int) -> dict:
     row = diagnosis.one(hidden, strength, seed, 3.0, workers, FRICTION_NAMES, diagnosis.DESIGN, truth_model,
-                        candidates=candidates)
+                        candidates=candidates, start_rates=start_rates)
     return {k: row[k] for k in ("verdict", "accepted", "first", "inside_interval", "estimate", "simulations")}
 
 
@@ -179,12 +182,12 @@ def diagnose_table(rows: list) -> str:
     lines = [f"Diagnose ({_seeds(rows)}; 3 s `none,J7x2`, friction held): campaigns whose verdict is the whole right answer "
              "(no_missing_effect; effect_found with the hidden effect alone), then the hidden effect accepted, inside "
              "its 95% interval, and another effect accepted", "",
-             "| hidden | candidates | " + " | ".join(f"made by {m}" for m in MODELS) + " |",
-             "|---|---|" + "---|" * len(MODELS)]
-    for hidden, strength, candidates in DIAGNOSE_CASES:
+             "| hidden | candidates | start rates | " + " | ".join(f"made by {m}" for m in MODELS) + " |",
+             "|---|---|---|" + "---|" * len(MODELS)]
+    for hidden, strength, candidates, start_rates in DIAGNOSE_CASES:
         cells = []
         for model in MODELS:
-            rs = [r for r in rows if r["job"][2:] == [model, hidden, strength, candidates]]
+            rs = [r for r in rows if r["job"][2:] == [model, hidden, strength, candidates, start_rates]]
             n = len(rs)
             right = sum(r["verdict"] == ("effect_found" if hidden else "no_missing_effect")
                         and set(r["accepted"]) == ({hidden} if hidden else set()) for r in rs)
@@ -197,7 +200,7 @@ def diagnose_table(rows: list) -> str:
                 cells.append(f"right {right}/{n}; wrong {wrong}/{n}")
         key, value = diagnosis.REFERENCE[hidden] if hidden else ("none", 0.0)
         label = "none" if hidden is None else f"{key} = {value * strength:g}"
-        lines.append(f"| {label} | {candidates} | " + " | ".join(cells) + " |")
+        lines.append(f"| {label} | {candidates} | {start_rates} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
 

@@ -116,9 +116,7 @@ def make_parser() -> argparse.ArgumentParser:
                      help="add a physical effect to the model (see rc1 effects); repeatable")
     cmp.add_argument("--json", type=Path, metavar="PATH", help="write every per-trial and per-case number")
     cmp.add_argument("--plots", type=Path, metavar="DIR", help="write figures in the paper's styles")
-    cmp.add_argument("--start", choices=START_MODES, default="rest",
-                     help="the head's rates at t = 0: rest (the synthetic campaigns' convention: centre of mass at "
-                          "rest, mean axis not turning) or fit (to the trial's first 0.5 s of camera and IMU)")
+    _add_start_rates(cmp, default="rest", fit="to its first 0.5 s of camera path and IMU")
     cmp.add_argument("--workers", type=_positive_int, metavar="N", help="processes (default: every core)")
 
     swp = sub.add_parser("sweep", help="fail each joint in turn (and none), several trials each")
@@ -193,6 +191,8 @@ def make_parser() -> argparse.ArgumentParser:
     dgn.add_argument("--no-probe-study", action="store_true",
                      help="do not simulate short probe trials to name the experiment that would see an effect "
                           "not detectable here")
+    _add_start_rates(dgn, default="rest", fit="three nuisance coordinates per trial in every fit, beside the "
+                                              "physics: for data whose start follows no known convention")
     _add_outputs(dgn, out_help="write the diagnosed model (friction and accepted effects; default "
                                "out/<campaign>.model.yaml)")
     # Every simulating command picks its engine.
@@ -204,6 +204,13 @@ def make_parser() -> argparse.ArgumentParser:
                              help=f"drake (the Diagram, the model of record) or compiled (its numba twin; "
                                   f"tests/test_engine.py) (default: {default})")
     return parser
+
+
+def _add_start_rates(parser, *, default: str, fit: str) -> None:
+    parser.add_argument("--start-rates", choices=START_MODES, default=default,
+                        help=f"the head's velocity and yaw rate at t = 0 of a trial that does not give them: fit "
+                             f"({fit}) or rest (the synthetic campaigns' convention: centre of mass at rest, mean "
+                             f"axis not turning) (default: {default})")
 
 
 def _add_outputs(parser, *, out_help: str) -> None:
@@ -378,7 +385,7 @@ def cmd_compare(args) -> int:
         print(f"\r  replayed {done}/{total} trials ({trial_id})", end="", file=sys.stderr, flush=True)
 
     report = compare_campaign(campaign, friction, effects=effects or None, workers=args.workers, progress=progress,
-                              start=args.start)
+                              start=args.start_rates)
     print(file=sys.stderr)
     print(f"Simulator error (paper Eq. 6) per trial, {campaign.path}:")
     print(report.table())
@@ -597,7 +604,7 @@ def cmd_diagnose(args) -> int:
     result = diagnose(campaign, friction=model.friction, effects=model.effects, candidates=args.candidates,
                       trials=trials, held=args.freeze, workers=args.workers, scheduler=args.scheduler,
                       input_noise_samples=args.input_noise_samples, max_rounds=args.rounds,
-                      probe_study=not args.no_probe_study, progress=progress)
+                      probe_study=not args.no_probe_study, progress=progress, start_rates=args.start_rates)
     print(f"Diagnosis of {campaign.path} ({len(result._trials)} trials; friction these data identify: "
           f"{', '.join(result.free) or 'none'}, the others held):")
     for k, r in enumerate(result.rounds):

@@ -146,7 +146,7 @@ def score_trial(trial: Trial, run) -> TrialResult:
 
 def _replay_and_score(trial: Trial, friction, effects, numerics, start="rest"):
     replayer = Replayer(trial, numerics)
-    if start == "fit":
+    if start == "fit" and trial.initial_head_rates is None:
         replayer.fit_start(friction, effects)
     run = replayer.run(friction, effects)
     return score_trial(trial, run), run
@@ -155,8 +155,9 @@ def _replay_and_score(trial: Trial, friction, effects, numerics, start="rest"):
 def compare_campaign(campaign: Campaign, friction: Optional[Friction] = None, effects=None, numerics=None,
                      workers: Optional[int] = None, progress=None, start="rest") -> CampaignReport:
     """Replay every trial with `friction` (and `effects`) and score it; trials run in parallel on
-    `workers` processes (default: every core), each building its own Diagram. start: "rest" (the protocol's
-    convention for the head's rates at t = 0) or "fit" (from the trial's first 0.5 s, start.py)."""
+    `workers` processes (default: every core), each building its own Diagram. start: where the head's rates at
+    t = 0 come from, unless the trial gives them: "rest" (the protocol's convention, protocol.rest_state) or "fit"
+    (its first 0.5 s, start.py)."""
     if start not in START_MODES:
         raise ValueError(f"start must be one of {START_MODES}, got {start!r}")
     workers = min(workers or os.cpu_count() or 1, len(campaign.trials))

@@ -48,9 +48,11 @@ from typing import Callable, Dict, List, Optional
 import numpy as np
 
 from . import identify as idf
-from .config import FRICTION_NAMES, Z95, Friction
+from .config import FRICTION_NAMES, START_MODES, Z95, Friction
 from .effects import LIBRARY, active, candidate_names, effect_values, potentiometer_faults
 from .engine import default_engine
+from .replay import with_rest_start
+from .start import START_NAMES
 
 P_ACCEPT = 2.7e-3  # Wald test of a candidate's parameters against 0: |z| > 3 for one parameter
 MIN_HELD_OUT_REDUCTION = 0.10  # a candidate "helps" when the simulated held-out error falls by this fraction
@@ -72,6 +74,11 @@ TRUST_STEPS = 4.0  # an effect coordinate's linear fit moves at most this many p
 POLISH_STEPS = 3  # Gauss-Newton steps on an accepted model, while simulation confirms them (_polish)
 POLISH_TOLERANCE = 0.5  # ... and while the accepted effect's step exceeds this many standard errors
 INPUT_NOISE_SAMPLES = 6  # bootstrap replays per trial for the replay's bias and input noise (replay_error)
+# A trial's start (its head's vx, vy, yaw rate at t = 0) as nuisance coordinates: forward-difference steps
+# and bounds (m/s, m/s, rad/s). The data, not a convention, fix it, fitted beside the physics in every fit.
+START = "start"
+START_STEPS = (0.02, 0.02, 0.1)
+START_BOUNDS = (1.0, 1.0, 5.0)
 FINAL_SIGMA_M = idf.RESIDUAL_SIGMAS["final_m"]
 
 
@@ -80,11 +87,12 @@ class Coordinate:
     """A direction of the linearization: a friction coefficient or one coordinate of an effect."""
 
     name: str
-    owner: str  # "friction" or the effect's name
+    owner: str  # "friction", START or the effect's name
     value: float
     lower: float
     upper: float
     step: float
+    start_of: Optional[tuple] = None  # a START coordinate's (trial index, index in START_NAMES)
 
 
 def friction_coordinates(friction: Friction, held=()) -> List[Coordinate]:
@@ -102,12 +110,37 @@ def effect_coordinates(name: str, effects: Dict[str, float]) -> List[Coordinate]
                        p.probe_step) for p in effect.coordinate_space()]
 
 
+def start_coordinates(trials) -> List[Coordinate]:
+    """Each trial's head rates at t = 0 (Trial.initial_head_rates, which must be set) as three coordinates."""
+    return [Coordinate(f"{t.trial_id}:{name}", START, float(t.initial_head_rates[i]), -bound, bound, step, (k, i))
+            for k, t in enumerate(trials)
+            for i, (name, step, bound) in enumerate(zip(START_NAMES, START_STEPS, START_BOUNDS, strict=True))]
+
+
+def starts_at(trials, coordinates: List[Coordinate], values) -> list:
+    """`trials` with their START coordinates among `coordinates` set to `values`."""
+    out = list(trials)
+    for c, v in zip(coordinates, values, strict=True):
+        if c.owner == START:
+            k, i = c.start_of
+            rates = out[k].initial_head_rates.copy()
+            rates[i] = float(v)
+            out[k] = dataclasses.replace(out[k], initial_head_rates=rates)
+    return out
+
+
+def physics_names(lin, names) -> List[str]:
+    """`names` without the trials' start coordinates: the model's parameters (what the misfit's dof count)."""
+    return [n for n in names if lin.coordinate(n).owner != START]
+
+
 def model_at(friction: Friction, effects: Dict[str, float], coordinates: List[Coordinate], values) -> tuple:
-    """(friction, effects) with the coordinates set to `values` (effects written back through their classes)."""
+    """(friction, effects) with the coordinates set to `values` (effects written back through their classes;
+    START coordinates belong to the trials: starts_at)."""
     friction = dataclasses.replace(friction, **{c.name: float(v) for c, v in zip(coordinates, values, strict=True)
                                                 if c.owner == "friction"})
     effects = dict(effects)
-    for owner in dict.fromkeys(c.owner for c in coordinates if c.owner != "friction"):
+    for owner in dict.fromkeys(c.owner for c in coordinates if c.owner not in ("friction", START)):
         effect = LIBRARY[owner]
         current = effect.coordinates(effect_values(effects, effect))
         current.update({c.name: float(v) for c, v in zip(coordinates, values, strict=True) if c.owner == owner})
@@ -153,6 +186,8 @@ def bootstrap_twin(trial, friction, effects, until: float) -> Optional[tuple]:
     from .synthesize import noise_free_twin
 
     twin = noise_free_twin(trial, friction=friction, effects=effects, head_at=until)
+    if trial.initial_head_rates is None:  # replayed from the convention, as the trial is
+        twin = dataclasses.replace(twin, initial_head_rates=None)
     if len(twin.t) != len(trial.t):
         return None
     camera = None
@@ -336,16 +371,21 @@ def fit(lin: Linearization, names: List[str]) -> Fit:
         xr, rr, _, _ = lin.rows(names, rest, weighted=True)
         dk = bounded_least_squares(xr, rr, lower, upper)
         xk, _, _, _ = lin.rows(names, [k])
+        own = [i for i, c in enumerate(coords) if c.start_of is not None and c.start_of[0] == k]
+        if own:  # its start is its own: fitted to it, with the physics the other trials gave
+            dk[own] = bounded_least_squares(xk[:, own], lin.r0[k] + xk @ dk, lower[own], upper[own])
         held.append(lin.r0[k] + xk @ dk)
         held_steps.append(dk)
-    if len(everything) >= 3 and names:
+    shared = [i for i, c in enumerate(coords) if c.start_of is None]  # a trial's start is its own: no jackknife
+    if len(everything) >= 3 and shared:
         # The trial jackknife sees what the sandwich assumes away: residuals correlated within a trial, and
         # a replay that misses its trial by more than the noise (measured: the toe fitted per trial of the
         # shipped campaign scatters 1.9-2.7 deg, where the sandwich's standard error was 0.04).
-        steps = np.array(held_steps)
+        steps = np.array(held_steps)[:, shared]
         jackknife = (len(steps) - 1) / len(steps) * (steps - steps.mean(axis=0)).T @ (steps - steps.mean(axis=0))
-        if np.trace(jackknife) > np.trace(cov):
-            cov = jackknife
+        block = np.ix_(shared, shared)
+        if np.trace(jackknife) > np.trace(cov[block]):
+            cov[block] = jackknife
     se = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     m = len(e)
     aic = m * math.log(max(float(e @ e), 1e-300) / m) + 2 * len(names)
@@ -537,6 +577,7 @@ class Diagnosis:
     simulations: int
     wall_s: float
     final_coordinates: Dict[str, List[float]] = dataclasses.field(default_factory=dict)  # name -> [value, se]
+    starts: Dict[str, List[float]] = dataclasses.field(default_factory=dict)  # "<trial>:<rate>" -> [value, se]
     stop_reason: str = ""
     unexplained_trials: Dict[str, dict] = dataclasses.field(default_factory=dict)  # trial -> misfit (see Misfit)
     _trials: list = dataclasses.field(default_factory=list, repr=False)
@@ -560,7 +601,7 @@ class Diagnosis:
             "accepted_effects": self.accepted,
             "model": {"friction": dataclasses.asdict(self.friction), "effects": self.effects},
             "error_after": self.waterfall[-1] if self.waterfall else None,
-            "final_coordinates": self.final_coordinates, "stop_reason": self.stop_reason,
+            "final_coordinates": self.final_coordinates, "starts": self.starts, "stop_reason": self.stop_reason,
             "waterfall": self.waterfall, "misfit_p": self.misfit_p, "unexplained_trials": self.unexplained_trials, "not_detectable": self.not_detectable,
             "where_it_fails": self.where_it_fails, "simulations": self.simulations, "wall_s": self.wall_s,
         }
@@ -592,11 +633,14 @@ class Diagnosis:
 # ------------------------------------------------------------------------------------------------ the loop
 
 def linearize(trials, friction, effects, candidates: List[str], evaluator: Evaluator, *, noise=None,
-              input_noise_samples=INPUT_NOISE_SAMPLES, held=()) -> Linearization:
+              input_noise_samples=INPUT_NOISE_SAMPLES, held=(), starts=False) -> Linearization:
     """Residuals at (friction, effects) and their forward-difference columns for the friction
-    coefficients, the model's own effects and the candidates; when `noise` is None, the replays' own error
-    (replay_error: their bias, taken off r0, and the input noise)."""
-    coords = friction_coordinates(friction, held)
+    coefficients, the model's own effects and the candidates (and with `starts`, each trial's start:
+    start_coordinates); when `noise` is None, the replays' own error (replay_error: their bias, taken off r0,
+    and the input noise)."""
+    if starts:  # linearized at the trials' own rates, else the protocol's
+        trials = [with_rest_start(t) for t in trials]
+    coords = (start_coordinates(trials) if starts else []) + friction_coordinates(friction, held)
     for name in list(dict.fromkeys([*(e.name for e in active(effects)), *candidates])):
         coords += effect_coordinates(name, effects)
     base = evaluator.map(_evaluate, [(t, friction, effects) for t in trials], "residuals at the model")
@@ -605,8 +649,10 @@ def linearize(trials, friction, effects, candidates: List[str], evaluator: Evalu
         values = [c2.value + (_signed_step(c) if c2 is c else 0.0) for c2 in coords]
         model = model_at(friction, effects, coords, values)
         for k, t in enumerate(trials):
+            if c.start_of is not None and c.start_of[0] != k:
+                continue  # another trial's start: this trial's replay is base's exactly
             if t.failed_joints or not _acts_in_failed_joints_only(c):  # else the replay is base's exactly
-                jobs.append((t, *model))
+                jobs.append((starts_at(trials, coords, values)[k] if c.start_of else t, *model))
                 where.append((c.name, k))
     outputs = evaluator.map(_evaluate, jobs, f"linearizing at the model ({len(coords)} directions)")
     bias = None
@@ -659,7 +705,9 @@ def _with_replay_error(lin: Linearization, evaluator: Evaluator, samples: int) -
 
 
 def _acts_in_failed_joints_only(c: Coordinate) -> bool:
-    return c.name == "c_joint" if c.owner == "friction" else LIBRARY[c.owner].failed_joints_only
+    if c.owner in ("friction", START):
+        return c.name == "c_joint"
+    return LIBRARY[c.owner].failed_joints_only
 
 
 def _signed_step(c: Coordinate) -> float:
@@ -670,22 +718,23 @@ def held_out_by_simulation(lin: Linearization, fitted: Fit, evaluator: Evaluator
     """Every trial replayed with the parameters fitted without it."""
     coords = [lin.coordinate(n) for n in fitted.names]
     jobs = []
-    for k, trial in enumerate(lin.trials):
+    for k in range(len(lin.trials)):
         values = [c.value + d for c, d in zip(coords, fitted.held_out_steps[k], strict=True)]
-        jobs.append((trial, *model_at(lin.friction, lin.effects, coords, values)))
+        jobs.append((starts_at(lin.trials, coords, values)[k], *model_at(lin.friction, lin.effects, coords, values)))
     out = evaluator.map(_evaluate, jobs, f"held-out replays: {label}")
     _, effects = model_at(lin.friction, lin.effects, coords, fitted.values)
     return _score(lin, label, effects, [lin.corrected(k, o[0]) for k, o in enumerate(out)], [o[1] for o in out],
                   [o[2] for o in out])
 
 
-def screen_friction(lin: Linearization, names=FRICTION_NAMES, max_relative_error=0.3) -> List[str]:
-    """The friction coefficients these data identify (identify.screen's rule: standard error below 30%)."""
+def screen_friction(lin: Linearization, names=FRICTION_NAMES, max_relative_error=0.3, nuisance=()) -> List[str]:
+    """The friction coefficients these data identify (identify.screen's rule: standard error below 30%), fitted
+    with the `nuisance` coordinates."""
     if not names:
         return []
-    fitted = fit(lin, list(names))
+    fitted = fit(lin, list(nuisance) + list(names))
     return [n for n, v, se in zip(fitted.names, fitted.values, fitted.standard_errors, strict=True)
-            if se < max_relative_error * abs(v)]
+            if n in names and se < max_relative_error * abs(v)]
 
 
 def _visibility(lin: Linearization, name: str) -> Dict[str, Dict[str, float]]:
@@ -706,14 +755,18 @@ def _visibility(lin: Linearization, name: str) -> Dict[str, Dict[str, float]]:
 
 def diagnose(campaign, *, friction: Optional[Friction] = None, effects=None, candidates=None, trials=None,
              held=(), workers=None, scheduler=None, input_noise_samples=INPUT_NOISE_SAMPLES, max_rounds=MAX_ROUNDS,
-             probe_study=True, progress=None) -> Diagnosis:
+             probe_study=True, progress=None, start_rates="rest") -> Diagnosis:
     """The loop of the module docstring on `campaign` (its `trials`, all by default), from the model
     (`friction`, `effects`); `candidates` are effect names or groups (effects.candidate_names; by default the
     physical effects, and the potentiometer faults of joints whose readings pass their limit); the friction
-    coefficients named in `held` stay at their values (no replays spent on them)."""
+    coefficients named in `held` stay at their values (no replays spent on them). The head's rates at t = 0 of a
+    trial that does not give them: `start_rates` "rest", the protocol's convention; "fit", three nuisance
+    coordinates per trial in every fit (start_coordinates), for data whose start follows no known convention."""
     from .executor import make_executor
 
     started = time.perf_counter()
+    if start_rates not in START_MODES:
+        raise ValueError(f"start_rates must be one of {START_MODES}, got {start_rates!r}")
     friction = friction or Friction()
     chosen = idf.choose_trials(campaign, trials)
     effects = dict(effects or {})
@@ -730,17 +783,20 @@ def diagnose(campaign, *, friction: Optional[Friction] = None, effects=None, can
     with make_executor(workers=workers or min(os.cpu_count() or 1, len(chosen)), scheduler=scheduler) as executor:
         evaluator = Evaluator(executor, progress)
         lin = linearize(chosen, friction, effects, replayed, evaluator, input_noise_samples=input_noise_samples,
-                        held=held)
-        free = screen_friction(lin, [n for n in FRICTION_NAMES if n not in held])
+                        held=held, starts=start_rates == "fit")
+        nuisance = [c.name for c in lin.coordinates if c.owner == START]
+        free = screen_friction(lin, [n for n in FRICTION_NAMES if n not in held], nuisance=nuisance)
+        lin = _starts_fitted(lin, nuisance, free, evaluator)
         start = _unrefitted(lin, "start (no refit)")
         start_step = {"model": start.label, "effects": start.effects, "mean_eq6_error_pct": start.mean_eq6(),
                       "mean_eq6_without_replay_miss_pct": start.mean_eq6_without_miss(),
                       "cases": start.by_case(chosen)}
         rounds, accepted, waterfall = [], [], [start_step]
-        model_names = list(free)  # the model's fitted parameters: the free friction, then the accepted effects'
+        # In every fit: the trials' starts (nuisance), the free friction, then the accepted effects' parameters.
+        model_names = nuisance + list(free)
         stop_reason = f"{max_rounds} rounds"
         for round_index in range(max_rounds):
-            if round_index and misfit(lin, lin.r0, len(model_names)).consistent:
+            if round_index and misfit(lin, lin.r0, len(physics_names(lin, model_names))).consistent:
                 # What the accepted effects leave is noise: searching it only finds false alarms (measured:
                 # head drag accepted after a true toe, benchmarks/diagnosis.py).
                 stop_reason = "what the accepted effects leave is consistent with the noise"
@@ -748,7 +804,7 @@ def diagnose(campaign, *, friction: Optional[Friction] = None, effects=None, can
             label = "today's model" if not accepted else "+ " + " + ".join(accepted)
             current = _unrefitted(lin, label + " (no refit)")
             round_names, baseline, refit_note = model_names, current, "nothing to refit"
-            if model_names:
+            if physics_names(lin, model_names):
                 base_fit = fit(lin, model_names)
                 refit = held_out_by_simulation(lin, base_fit, evaluator, label + ", refitted")
                 if round_index == 0:
@@ -756,20 +812,18 @@ def diagnose(campaign, *, friction: Optional[Friction] = None, effects=None, can
                 if refit.sum_of_squares < current.sum_of_squares:
                     baseline, refit_note = refit, "refitted"
                     # Move today's model to its refit (all trials), where simulation confirms it.
-                    moved = _relinearize(lin, *model_at(lin.friction, lin.effects,
-                                                        [lin.coordinate(n) for n in model_names], base_fit.values),
-                                         evaluator)
+                    moved = _moved(lin, model_names, base_fit.values, evaluator)
                     if lin.weighted_sum_of_squares(moved.r0) < current.sum_of_squares:
                         lin = moved
                     else:
                         refit_note = "refitted for the held-out check; kept where it was (the all-trial refit did worse)"
                 else:
                     # The linear step of a nonlinear (Coulomb) model can overshoot: keep what simulation rejects out.
-                    round_names, refit_note = [], (f"kept: refitting {', '.join(model_names)} raised the held-out "
+                    round_names, refit_note = nuisance, (f"kept: refitting {', '.join(model_names)} raised the held-out "
                                                    f"sum of squares from {current.sum_of_squares:.4g} to "
                                                    f"{refit.sum_of_squares:.4g}")
             base_fit = fit(lin, round_names)
-            left = misfit(lin, base_fit.residual, len(round_names))
+            left = misfit(lin, base_fit.residual, len(physics_names(lin, round_names)))
             results = _rank(lin, base_fit, round_names, [n for n in replayed if n not in accepted])
             # Refine the most promising candidates by one secant step: replay every trial at the candidate's
             # linear fit and update its columns (Broyden) there. A column taken at 0 misjudges effects seen at
@@ -778,8 +832,7 @@ def diagnose(campaign, *, friction: Optional[Friction] = None, effects=None, can
             refined = {}
             for c in [c for c in results if c.status != "not detectable here"][:REFINED_CANDIDATES]:
                 names = round_names + [co.name for co in lin.coordinates if co.owner == c.name]
-                at = _relinearize(lin, *model_at(lin.friction, lin.effects, [lin.coordinate(n) for n in names],
-                                                 fit(lin, names).values), evaluator, what=f"refining {c.name}")
+                at = _moved(lin, names, fit(lin, names).values, evaluator, what=f"refining {c.name}")
                 again = _rank(at, fit(at, round_names), round_names, [c.name], reference=base_fit)[0]
                 again.visibility, again.indistinguishable_from = c.visibility, c.indistinguishable_from
                 refined[c.name] = (again, at)
@@ -815,8 +868,7 @@ def diagnose(campaign, *, friction: Optional[Friction] = None, effects=None, can
             model_names = list(dict.fromkeys(model_names + cand_fit.names))
             # The accepted model: the refined fit, where its residuals are simulated (at the refinement's point
             # plus the refit's step; that step is small, and the next round refits from there).
-            lin = _relinearize(at, *model_at(at.friction, at.effects, [at.coordinate(n) for n in cand_fit.names],
-                                             cand_fit.values), evaluator)
+            lin = _moved(at, cand_fit.names, cand_fit.values, evaluator)
             # The replay's own error depends on the model. Measured on 2 s joint-2 trials with a 0.5 head drag
             # hidden: with the bias taken at no drag, the accepted true model missed a trial by 5 cm (noise 1.1)
             # and was called unexplained; with the bias taken again here, its misfit is the noise's (p = 0.36).
@@ -836,11 +888,12 @@ def diagnose(campaign, *, friction: Optional[Friction] = None, effects=None, can
         # standard errors come from the linearization there.
         friction_out, effects_out = lin.friction, lin.effects
         final_fit = fit(lin, model_names)
-        report, where = _where_it_fails(campaign, chosen, friction_out, effects_out, evaluator)
-        simulated = [lin.corrected(k, idf.trial_residual(t, report.runs[t.trial_id])) for k, t in enumerate(chosen)]
+        report, where = _where_it_fails(campaign, lin.trials, friction_out, effects_out, evaluator)
+        simulated = [lin.corrected(k, idf.trial_residual(t, report.runs[t.trial_id])) for k, t in enumerate(lin.trials)]
         final_coordinates = {n: [float(lin.coordinate(n).value), float(se)] for n, se in zip(
             final_fit.names, final_fit.standard_errors, strict=True)}
-        left = misfit(lin, simulated, len(model_names))  # the final model's replays, not the linear guess
+        # the final model's replays, not the linear guess
+        left = misfit(lin, simulated, len(physics_names(lin, model_names)))
     for r in rounds:
         for c in r.candidates:
             if c.status == "not detectable here" and c.name not in [d["name"] for d in not_detectable]:
@@ -854,8 +907,9 @@ def diagnose(campaign, *, friction: Optional[Friction] = None, effects=None, can
                      accepted=accepted, verdict=verdict, explanation=explanation, misfit_p=left.p,
                      unexplained_trials=left.outliers,
                      not_detectable=not_detectable, where_it_fails=where, simulations=evaluator.simulations,
-                     wall_s=time.perf_counter() - started, _trials=chosen, report=report,
-                     final_coordinates=final_coordinates, stop_reason=stop_reason)
+                     wall_s=time.perf_counter() - started, _trials=lin.trials, report=report,
+                     final_coordinates={n: v for n, v in final_coordinates.items() if n not in nuisance},
+                     starts={n: v for n, v in final_coordinates.items() if n in nuisance}, stop_reason=stop_reason)
 
 
 def decide(results: List[CandidateResult]) -> tuple:
@@ -919,25 +973,43 @@ def _step(label, score: HeldOutScore, trials) -> dict:
             "held_out_sum_of_squares": score.sum_of_squares, "cases": score.by_case(trials)}
 
 
+def _starts_fitted(lin: Linearization, nuisance: List[str], free: List[str], evaluator) -> Linearization:
+    """`lin` with the trials' starts (`nuisance`) fitted with today's free friction on all trials, where
+    simulation confirms it (the friction stays: the round's refit moves it)."""
+    if not nuisance:
+        return lin
+    fitted = fit(lin, nuisance + free)
+    moved = _moved(lin, nuisance, fitted.values[:len(nuisance)], evaluator, what="the trials' starts fitted")
+    return moved if lin.weighted_sum_of_squares(moved.r0) < lin.weighted_sum_of_squares(lin.r0) else lin
+
+
+def _moved(lin: Linearization, names: List[str], values, evaluator, **kwargs) -> Linearization:
+    """`lin` relinearized (_relinearize) where the coordinates `names` take `values` (starts included)."""
+    coords = [lin.coordinate(n) for n in names]
+    return _relinearize(lin, *model_at(lin.friction, lin.effects, coords, values), evaluator,
+                        trials=starts_at(lin.trials, coords, values), **kwargs)
+
+
 def _relinearize(lin: Linearization, friction, effects, evaluator, what="residuals at the new model",
-                 samples=0) -> Linearization:
+                 samples=0, trials=None) -> Linearization:
     """The residuals at the new model; the columns updated by Broyden's rank-one secant update along the
     step (no replays: the columns of the coordinates that moved become secants through both points, so
     a nonlinear response is followed); the replay's bias and input noise reused, or with `samples`
     measured again at the new model (replay_error) before the update, so that the secants follow the
-    residuals with the replay's own miss taken off."""
-    out = evaluator.map(_evaluate, [(t, friction, effects) for t in lin.trials], what)
+    residuals with the replay's own miss taken off. `trials`: the trials with their starts at the new model."""
+    trials = list(trials or lin.trials)
+    out = evaluator.map(_evaluate, [(t, friction, effects) for t in trials], what)
     # A trial whose replay now stops elsewhere keeps its old residual and columns (and bias and noise).
     stays = [len(o[0]) != len(r) for o, r in zip(out, lin.r0, strict=True)]
     target = lin
     if samples:
-        bias, noise = _replay_errors(lin.trials, friction, effects, [o[3] for o in out], [len(o[0]) for o in out],
+        bias, noise = _replay_errors(trials, friction, effects, [o[3] for o in out], [len(o[0]) for o in out],
                                      evaluator, samples)
         old = lin.bias or [None] * len(stays)
         bias = [old[k] if s else b for k, (s, b) in enumerate(zip(stays, bias, strict=True))]
         noise = [lin.noise[k] if s else n for k, (s, n) in enumerate(zip(stays, noise, strict=True))]
         target = dataclasses.replace(lin, bias=bias, noise=noise, weights=trial_weights(lin.trials, noise))
-    values = _coordinate_values(lin.coordinates, friction, effects)
+    values = _coordinate_values(lin.coordinates, friction, effects, trials)
     step = np.array(values) - np.array([c.value for c in lin.coordinates])
     names = [c.name for c in lin.coordinates]
     columns = {n: list(cols) for n, cols in lin.columns.items()}
@@ -956,8 +1028,8 @@ def _relinearize(lin: Linearization, friction, effects, evaluator, what="residua
             for j, n in enumerate(names):
                 columns[n][k] = jacobian[:, j]
     coords = [dataclasses.replace(c, value=v) for c, v in zip(lin.coordinates, values, strict=True)]
-    return dataclasses.replace(target, friction=friction, effects=dict(effects), coordinates=coords, r0=r0,
-                               columns=columns, eq6=[o[1] for o in out], yaw_fit=[o[2] for o in out], ends=ends)
+    return dataclasses.replace(target, trials=trials, friction=friction, effects=dict(effects), coordinates=coords,
+                               r0=r0, columns=columns, eq6=[o[1] for o in out], yaw_fit=[o[2] for o in out], ends=ends)
 
 
 def _polish(lin: Linearization, names: List[str], effect: str, evaluator, samples: int) -> tuple:
@@ -973,9 +1045,7 @@ def _polish(lin: Linearization, names: List[str], effect: str, evaluator, sample
         own = [i for i, n in enumerate(step.names) if lin.coordinate(n).owner == effect]
         if all(abs(step.steps[i]) <= POLISH_TOLERANCE * step.standard_errors[i] for i in own):
             break
-        moved = _relinearize(lin, *model_at(lin.friction, lin.effects, [lin.coordinate(n) for n in names],
-                                            step.values), evaluator, what=f"polishing {effect} ({k + 1})",
-                             samples=samples)
+        moved = _moved(lin, names, step.values, evaluator, what=f"polishing {effect} ({k + 1})", samples=samples)
         if lin.weighted_sum_of_squares(moved.r0) >= lin.weighted_sum_of_squares(lin.r0):  # both with lin's weights
             break
         lin = moved
@@ -984,10 +1054,12 @@ def _polish(lin: Linearization, names: List[str], effect: str, evaluator, sample
     return lin, k
 
 
-def _coordinate_values(coords, friction, effects) -> List[float]:
+def _coordinate_values(coords, friction, effects, trials) -> List[float]:
     values = []
     for c in coords:
-        if c.owner == "friction":
+        if c.owner == START:
+            values.append(float(trials[c.start_of[0]].initial_head_rates[c.start_of[1]]))
+        elif c.owner == "friction":
             values.append(getattr(friction, c.name))
         else:
             effect = LIBRARY[c.owner]

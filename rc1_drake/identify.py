@@ -80,7 +80,14 @@ def _replayer(trial):
     key = (default_engine(), str(trial.source or trial.trial_id))
     if key not in _REPLAYERS:
         _REPLAYERS[key] = Replayer(trial)
-    return _REPLAYERS[key]
+    replayer = _REPLAYERS[key]
+    if not _same(replayer.trial.initial_head_rates, trial.initial_head_rates):  # a fit moves a trial's start
+        replayer.use_start(trial.initial_head_rates)
+    return replayer
+
+
+def _same(a, b) -> bool:
+    return (a is None and b is None) or (a is not None and b is not None and np.array_equal(a, b))
 
 
 def _replay(trial, friction: Friction, effects=None):

@@ -22,8 +22,11 @@ REQUIRED_COLUMNS = ("t_s",) + JOINT_COLUMNS + ("head_yaw_rate_rad_s",)
 CAMERA_COLUMNS = ("head_x_m", "head_y_m", "head_yaw_rad")
 GAIT_KEYS = ("amplitude_deg", "frequency_deg_s", "phase_step_deg", "phase_offset_deg", "bias_deg")
 STOP_TYPES = {"line": "line_x_m", "revolutions": "count", "time": "t_s"}
-JSON_KEYS = {"trial_id", "failed_joints", "gait", "stop", "initial_head_pose", "final_head_xy_m", "notes"}
+JSON_KEYS = {"trial_id", "failed_joints", "gait", "stop", "initial_head_pose", "final_head_xy_m", "notes",
+             "initial_head_rates"}
+OPTIONAL_JSON_KEYS = ("notes", "initial_head_rates")
 POSE_KEYS = ("x_m", "y_m", "yaw_rad")
+RATE_KEYS = ("vx_m_s", "vy_m_s", "yaw_rate_rad_s")
 
 # Tolerances of the checks (documented in data/README.md).
 JOINT_TOLERANCE_DEG = 3.0  # measured joint angles may exceed +-38 deg by this much (noise, linkage play)
@@ -63,6 +66,9 @@ class Trial:
     # joint (1-based) -> its largest reading (deg, signed) where it passes the limit and the tolerance: a
     # measurement to explain (a potentiometer's offset or gain error), loaded with a warning
     beyond_limit: Dict[int, float] = dataclasses.field(default_factory=dict)
+    # (3,) the head's vx, vy (m/s) and yaw rate (rad/s) at t = 0, where the data give them (an optional key) or
+    # a fit set them (diagnose.start_coordinates); None: not known
+    initial_head_rates: Optional[np.ndarray] = None
 
     @property
     def case(self) -> str:
@@ -138,8 +144,8 @@ def _load_json(path: Path) -> dict:
         _fail(path, f"line {e.lineno}", f"not valid JSON: {e.msg}")
     except UnicodeDecodeError:
         _fail(path, "file", "not a text file")
-    required = sorted(JSON_KEYS - {"notes"})
-    data = _mapping(path, "", data, required, optional=("notes",))
+    required = sorted(JSON_KEYS - set(OPTIONAL_JSON_KEYS))
+    data = _mapping(path, "", data, required, optional=OPTIONAL_JSON_KEYS)
     trial_id = data["trial_id"]
     if not isinstance(trial_id, str) or not trial_id:
         _fail(path, "trial_id", "expected a non-empty string")
@@ -170,8 +176,12 @@ def _load_json(path: Path) -> dict:
     notes = data.get("notes", "")
     if not isinstance(notes, str):
         _fail(path, "notes", "expected a string")
+    rates = None
+    if "initial_head_rates" in data:
+        given = _mapping(path, "initial_head_rates", data["initial_head_rates"], RATE_KEYS)
+        rates = np.array([_number(path, f"initial_head_rates.{k}", given[k]) for k in RATE_KEYS])
     return dict(trial_id=trial_id, failed_joints=sorted(failed), gait=gait, stop=stop, initial_head_pose=pose,
-                final_head_xy=final, notes=notes)
+                final_head_xy=final, notes=notes, initial_head_rates=rates)
 
 
 def _load_csv(path: Path, failed_joints) -> dict:
@@ -318,6 +328,8 @@ def write_trial(folder, stem: str, trial: Trial) -> Path:
     }
     if trial.notes:
         meta["notes"] = trial.notes
+    if trial.initial_head_rates is not None:
+        meta["initial_head_rates"] = dict(zip(RATE_KEYS, map(float, trial.initial_head_rates), strict=True))
     header = list(REQUIRED_COLUMNS) + (list(CAMERA_COLUMNS) if trial.camera is not None else [])
     rows = []
     for k in range(len(trial.t)):

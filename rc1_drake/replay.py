@@ -21,6 +21,7 @@ from .effects import sensor_model
 from .gait import serpenoid
 from .measurements import Trial
 from .engine import make_session
+from .engine.dynamics import plant_numbers
 from .protocol import Run, rest_state
 from .smoothing import smoothed_samples
 from .start import StartEstimate, fit_start
@@ -99,13 +100,25 @@ def replay_scenario(trial: Trial, friction: Friction, effects=None, numerics=Non
 
 def replay_initial_state(trial: Trial, reference: JointReference, geometry) -> np.ndarray:
     """The trial's initial head pose; working joints at their smoothed first sample, failed joints at
-    the commanded serpenoid (the start configuration); the head's rates from protocol.rest_state (the
-    synthetic campaigns' convention; Replayer.fit_start takes them from the data instead)."""
+    the commanded serpenoid (the start configuration); the head's rates as the trial gives them
+    (Trial.initial_head_rates: measured, or set by a fit), else from protocol.rest_state (the synthetic
+    campaigns' convention)."""
     q, q_dot = serpenoid(0.0, trial.gait)
     working = [j - 1 for j in trial.working_joints]
     q[working] = reference.q[0, working]
     q_dot[working] = reference.q_dot[0, working]
-    return rest_state(trial.initial_head_pose[:2], float(trial.initial_head_pose[2]), q, q_dot, geometry)
+    x = rest_state(trial.initial_head_pose[:2], float(trial.initial_head_pose[2]), q, q_dot, geometry)
+    if trial.initial_head_rates is not None:
+        x[16:19] = trial.initial_head_rates
+    return x
+
+
+def with_rest_start(trial: Trial) -> Trial:
+    """`trial` with the protocol's head rates at t = 0 (protocol.rest_state) written in, unless it carries its own."""
+    if trial.initial_head_rates is not None:
+        return trial
+    x = replay_initial_state(trial, joint_reference(trial), plant_numbers().geometry)
+    return dataclasses.replace(trial, initial_head_rates=x[16:19].copy())
 
 
 class Replayer:
@@ -128,8 +141,14 @@ class Replayer:
         fitter = self.session if self.session.engine == "compiled" else make_session(
             scenario, engine="compiled", joint_reference=self.reference)
         self.start = fit_start(self.trial, fitter, scenario, self.initial)
-        self.initial[16:19] = self.start.head_rates
+        self.use_start(self.start.head_rates)
         return self.start
+
+    def use_start(self, head_rates) -> None:
+        """Replay from these head rates at t = 0 (Trial.initial_head_rates; None: the protocol's convention)."""
+        rates = None if head_rates is None else np.array(head_rates, dtype=float)
+        self.trial = dataclasses.replace(self.trial, initial_head_rates=rates)
+        self.initial = replay_initial_state(self.trial, self.reference, self.session.geometry)
 
     def run(self, friction: Friction, effects=None, *, sensitivities=()) -> Run:
         """The replay; with `sensitivities` (names, compiled engine) also d state / d parameter (Run.sensitivity)."""
@@ -165,8 +184,6 @@ class Replayer:
         self.session.set_joint_reference(reference)
         try:
             initial = replay_initial_state(self.trial, reference, self.session.geometry)
-            if self.start is not None:
-                initial[16:19] = self.start.head_rates
             return self.session.simulate(scenario, initial=initial, sensitivities=sensitivities)
         finally:
             self.session.set_joint_reference(self.reference)

@@ -206,6 +206,7 @@ def noise_free_twin(trial: Trial, *, friction: Friction, effects=None, head_at: 
     run = make_session(scenario).simulate(scenario)
     silent = dataclasses.replace(Noise().scaled(0.0), camera_dropout=0.0)
     twin = _measure(run, scenario, trial.trial_id, silent, np.random.default_rng(0), True, period)
+    twin.initial_head_rates = run.state[0, 16:19].copy()  # its start, known exactly
     if head_at is not None:  # the head itself, not what a camera with a fault would show of it
         twin = dataclasses.replace(twin, final_head_xy=np.array([np.interp(head_at, run.t, run.head_xy[:, i])
                                                                  for i in (0, 1)]))

@@ -101,6 +101,30 @@ def test_a_replay_reaches_the_line_its_data_ended_just_before(tmp_path):
     assert run.head_xy[-1, 0] == pytest.approx(trial.stop.value, abs=1e-3)
 
 
+def test_a_trial_that_gives_its_start_rates_replays_from_them(tmp_path):
+    """Recorded 1 s into the motion (reference.py), a trial starts far from the protocol's convention (the centre
+    of mass at rest): given the head's rates at its first sample (the data's initial_head_rates; here from the
+    noise-free camera and IMU), the replay starts there and ends nearer the truth."""
+    import dataclasses
+
+    from rc1_drake.config import Friction
+    from rc1_drake.replay import Replayer
+    from rc1_drake.synthesize import Noise, Variation
+
+    silent = dataclasses.replace(Noise().scaled(0.0), camera_dropout=0.0)
+    synthesize_campaign(tmp_path, design=[Case([], 1)], truth_model="reference", noise=silent,
+                        variation=Variation(0.0, 0.0, 0.0), record_after_s=1.0,
+                        stop=Stop(line_x_m=None, revolutions=None, time_limit_s=3.0))
+    (trial,) = load_campaign(tmp_path).trials
+    dt = trial.t[1] - trial.t[0]
+    vx, vy = (-3 * trial.camera[0, :2] + 4 * trial.camera[1, :2] - trial.camera[2, :2]) / (2 * dt)
+    given = dataclasses.replace(trial, initial_head_rates=np.array([vx, vy, trial.head_yaw_rate[0]]))
+    runs = {name: Replayer(t, engine="compiled").run(Friction()) for name, t in (("rest", trial), ("given", given))}
+    assert np.allclose(runs["given"].state[0, 16:19], given.initial_head_rates)
+    miss = {name: np.hypot(*(run.head_xy[-1] - trial.final_head_xy)) for name, run in runs.items()}
+    assert miss["given"] < 0.5 * miss["rest"], miss
+
+
 def test_a_trial_recorded_in_motion_replays_closer_from_its_fitted_start(tmp_path):
     """Made by the independent model (reference.py) and recorded 1 s after the robot started: the protocol's
     start (centre of mass at rest) is wrong there, the start fitted to the first 0.5 s of data is not."""

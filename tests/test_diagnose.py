@@ -231,8 +231,8 @@ SECONDS = 2.0
 DESIGN = [Case([], 1), Case([7], 2)]  # the nominal gait sees the wheels; a failed joint sees the rest
 
 
-def _campaign(folder, effects, seed=11, design=DESIGN, seconds=SECONDS):
-    synthesize_campaign(folder, design=design, effects=effects, seed=seed,
+def _campaign(folder, effects, seed=11, design=DESIGN, seconds=SECONDS, truth_model="drake"):
+    synthesize_campaign(folder, design=design, effects=effects, seed=seed, truth_model=truth_model,
                         stop=Stop(line_x_m=None, revolutions=None, time_limit_s=seconds))
     return load_campaign(folder)
 
@@ -322,10 +322,14 @@ def test_effects_the_replays_cannot_see_are_reported_not_detectable_and_nothing_
 
 
 @pytest.mark.slow
-def test_a_campaign_without_a_hidden_effect_gets_nothing_accepted(tmp_path):
-    result = _diagnose(_campaign(tmp_path, {}, seed=12))
+@pytest.mark.parametrize("truth_model, start_rates", [("drake", "rest"), ("reference", "fit")])
+def test_a_campaign_without_a_hidden_effect_gets_nothing_accepted(tmp_path, truth_model, start_rates):
+    """Also when another model made it (reference.py: kinematic joints, the head at rest at its start, not this
+    project's convention), with each trial's start fitted beside the physics."""
+    result = _diagnose(_campaign(tmp_path, {}, seed=12, truth_model=truth_model), start_rates=start_rates)
     assert result.accepted == [] and result.verdict == "no_missing_effect", result.rounds[0].table()
     assert result.effects == {}
+    assert len(result.starts) == (3 * len(result._trials) if start_rates == "fit" else 0)
 
 
 class FloorSeams(Effect):
