@@ -38,7 +38,7 @@ class TrialResult:
     eq6_error_pct: float
     predicted_final_xy_m: list
     measured_final_xy_m: list
-    outcome: str  # how the replay ended
+    outcome: str  # how the replay ended (replay_outcome)
     yaw_rate_fit_pct: float
     camera_fit_pct: Optional[dict]  # {"x": .., "y": .., "yaw": ..} or None without a camera
     tracking_rms_deg: float
@@ -103,6 +103,15 @@ class CampaignReport:
         return "\n".join(lines)
 
 
+def replay_outcome(trial: Trial, run) -> str:
+    """How the replay ended: "crossed" or "circling" at the trial's stop event; "data_ended" when its data (and
+    their grace) ran out before the replay reached the line or the turns the trial stopped at (a replay short by
+    millimetres, the kinematic joints' share of the angle noise: Eq. 6 measures it); "timed_out" at a time stop."""
+    if run.stop_reason == "timed_out" and trial.stop.type != "time":
+        return "data_ended"
+    return run.stop_reason
+
+
 def score_trial(trial: Trial, run) -> TrialResult:
     """Compare a replay `run` with the trial's measurements."""
     t = trial.t - trial.t[0]
@@ -132,7 +141,7 @@ def score_trial(trial: Trial, run) -> TrialResult:
         eq6_error_pct=simulator_error(run.head_xy[-1], trial.final_head_xy, trial.initial_head_pose[:2]),
         predicted_final_xy_m=[float(v) for v in run.head_xy[-1]],
         measured_final_xy_m=[float(v) for v in trial.final_head_xy],
-        outcome=run.stop_reason,
+        outcome=replay_outcome(trial, run),
         yaw_rate_fit_pct=fit_percent(trial.head_yaw_rate[inside], rate_sim),
         camera_fit_pct=camera_fit,
         tracking_rms_deg=tracking_rms_deg(run, trial),

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from rc1_drake.cli import main
-from rc1_drake.compare import compare_campaign, fit_percent, simulator_error
+from rc1_drake.compare import compare_campaign, fit_percent, score_trial, simulator_error
 from rc1_drake.config import Stop
 from rc1_drake.measurements import load_campaign
 from rc1_drake.synthesize import Case, synthesize_campaign
@@ -99,6 +99,11 @@ def test_a_replay_reaches_the_line_its_data_ended_just_before(tmp_path):
     end, period = trial.t[-1] - trial.t[0], trial.t[1] - trial.t[0]
     assert run.stop_reason == "crossed" and end < run.t[-1] <= end + EVENT_GRACE_SAMPLES * period + 1e-9
     assert run.head_xy[-1, 0] == pytest.approx(trial.stop.value, abs=1e-3)
+    # Data that end further from the line than the grace reaches: the replay ends with them, short of the line,
+    # and says so (not "timed_out": no clock stopped it).
+    short = trial_samples(trial, slice(0, len(trial.t) - 10))
+    result = score_trial(short, Replayer(short, engine="compiled").run(Friction()))
+    assert result.outcome == "data_ended" and result.predicted_final_xy_m[0] < trial.stop.value - 0.005
 
 
 def test_a_trial_that_gives_its_start_rates_replays_from_them(tmp_path):
