@@ -7,8 +7,8 @@ replays from that convention with its end off by centimetres (10.7 cm, 3.4% of t
 independent model). So the head's three rates at t = 0 are fitted, per trial, to what the trial measured
 over its first START_FIT_S: the camera's head path where it saw the head, and the IMU's yaw rate, each
 standardized by its channel's sigma (config.RESIDUAL_SIGMAS). The model's own transient from each candidate
-start is what is compared, so a start from rest, or in full motion, is found alike. Gauss-Newton, from the
-protocol's convention as the first guess; its Jacobian is the replay's exact sensitivity to the start
+start is what is compared, so a start from rest, or in full motion, is found alike. Gauss-Newton with step
+halving (a step is taken only where the misfit falls), from the protocol's convention as the first guess; its Jacobian is the replay's exact sensitivity to the start
 (engine.session.START_RATES), so the fit runs on the compiled engine, and both engines replay from its result.
 """
 
@@ -20,6 +20,7 @@ from .config import RESIDUAL_SIGMAS, Stop
 
 START_FIT_S = 0.5  # the window of measurements that fixes the start
 START_ITERATIONS = 6
+START_HALVINGS = 4  # a step is halved at most this often before the fit stops where it is
 START_TOLERANCE = 1e-6  # m/s and rad/s: the Gauss-Newton step below which the fit has converged
 START_NAMES = ("start_head_vx_m_s", "start_head_vy_m_s", "start_head_yaw_rate_rad_s")
 
@@ -59,13 +60,21 @@ def fit_start(trial, session, scenario, x0, *, window: float = START_FIT_S) -> S
     x0 = np.array(x0, dtype=float)
     end = min(window, float(trial.t[-1] - trial.t[0]))
     short = dataclasses.replace(scenario, stop=Stop(line_x_m=None, revolutions=None, time_limit_s=end))
+    r, jacobian = _residual_and_jacobian(trial, session, short, x0, window)
     for _ in range(START_ITERATIONS):
-        r, jacobian = _residual_and_jacobian(trial, session, short, x0, window)
         step = np.linalg.lstsq(jacobian, -r, rcond=None)[0]
-        x0[16:19] += step
+        for _ in range(START_HALVINGS):  # friction's kinks make a full Gauss-Newton step overshoot
+            moved = x0.copy()
+            moved[16:19] += step
+            r_moved, j_moved = _residual_and_jacobian(trial, session, short, moved, window)
+            if r_moved @ r_moved < r @ r:
+                break
+            step = step / 2
+        else:
+            break  # no step lowers the misfit: here is the fit
+        x0, r, jacobian = moved, r_moved, j_moved
         if np.abs(step).max() < START_TOLERANCE:
             break
-    r, jacobian = _residual_and_jacobian(trial, session, short, x0, window)
     errors = np.sqrt(np.diag(np.linalg.pinv(jacobian.T @ jacobian)))
     return StartEstimate(head_rates=x0[16:19].copy(), standard_errors=errors,
                          residual_rms=float(np.sqrt(np.mean(r ** 2))), samples=len(r))

@@ -147,6 +147,22 @@ def test_a_trial_recorded_in_motion_replays_closer_from_its_fitted_start(tmp_pat
         compare_campaign(campaign, start="moving")
 
 
+def test_the_start_fit_takes_only_steps_that_lower_its_misfit(tmp_path):
+    """A regression example: a 2 deg toe the model lacks (3 s, seed 6) drove full Gauss-Newton steps to a start at
+    1.6 m/s sideways with a misfit 5.2 standard deviations RMS; halving a step until the misfit falls ends near
+    the protocol's start (measured: 0.16 m/s, 1.8)."""
+    from rc1_drake.config import Friction
+    from rc1_drake.replay import Replayer
+
+    synthesize_campaign(tmp_path, design=[Case([], 1)], seed=6, effects={"wheel_toe_deg": 2.0},
+                        stop=Stop(line_x_m=None, revolutions=None, time_limit_s=3.0))
+    (trial,) = load_campaign(tmp_path).trials
+    replayer = Replayer(trial, engine="compiled")
+    estimate = replayer.fit_start(Friction())
+    assert estimate.residual_rms < 2.5 and np.abs(estimate.head_rates[:2]).max() < 0.5, estimate
+    assert np.array_equal(replayer.initial[16:19], estimate.head_rates)
+
+
 @pytest.mark.parametrize("period_s, camera", [(0.05, False), (0.002, True)])
 def test_campaigns_by_another_model_replay_at_20_to_500_hz_with_or_without_a_camera(tmp_path, period_s, camera):
     """reference.py's campaigns (kinematic joints, the head at rest at its start) sampled at 20 Hz with no camera
