@@ -819,9 +819,9 @@ def diagnose(campaign, *, friction: Optional[Friction] = None, effects=None, can
                         refit_note = "refitted for the held-out check; kept where it was (the all-trial refit did worse)"
                 else:
                     # The linear step of a nonlinear (Coulomb) model can overshoot: keep what simulation rejects out.
-                    round_names, refit_note = nuisance, (f"kept: refitting {', '.join(model_names)} raised the held-out "
-                                                   f"sum of squares from {current.sum_of_squares:.4g} to "
-                                                   f"{refit.sum_of_squares:.4g}")
+                    round_names = nuisance
+                    refit_note = (f"kept: refitting {', '.join(model_names)} raised the held-out sum of squares "
+                                  f"from {current.sum_of_squares:.4g} to {refit.sum_of_squares:.4g}")
             base_fit = fit(lin, round_names)
             left = misfit(lin, base_fit.residual, len(physics_names(lin, round_names)))
             results = _rank(lin, base_fit, round_names, [n for n in replayed if n not in accepted])

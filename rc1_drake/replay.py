@@ -132,7 +132,6 @@ class Replayer:
         base = replay_scenario(trial, Friction(), numerics=self.numerics)
         self.session = make_session(base, engine=engine, joint_reference=self.reference)
         self.initial = replay_initial_state(trial, self.reference, self.session.geometry)
-        self.start = None  # StartEstimate once fit_start has run
 
     def fit_start(self, friction: Friction, effects=None) -> StartEstimate:
         """Replay from the head rates that the trial's first measurements give at this model (start.py) in
@@ -140,9 +139,9 @@ class Replayer:
         scenario = replay_scenario(self.trial, friction, effects, self.numerics)
         fitter = self.session if self.session.engine == "compiled" else make_session(
             scenario, engine="compiled", joint_reference=self.reference)
-        self.start = fit_start(self.trial, fitter, scenario, self.initial)
-        self.use_start(self.start.head_rates)
-        return self.start
+        estimate = fit_start(self.trial, fitter, scenario, self.initial)
+        self.use_start(estimate.head_rates)
+        return estimate
 
     def use_start(self, head_rates) -> None:
         """Replay from these head rates at t = 0 (Trial.initial_head_rates; None: the protocol's convention)."""

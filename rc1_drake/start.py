@@ -8,8 +8,9 @@ independent model). So the head's three rates at t = 0 are fitted, per trial, to
 over its first START_FIT_S: the camera's head path where it saw the head, and the IMU's yaw rate, each
 standardized by its channel's sigma (config.RESIDUAL_SIGMAS). The model's own transient from each candidate
 start is what is compared, so a start from rest, or in full motion, is found alike. Gauss-Newton with step
-halving (a step is taken only where the misfit falls), from the protocol's convention as the first guess; its Jacobian is the replay's exact sensitivity to the start
-(engine.session.START_RATES), so the fit runs on the compiled engine, and both engines replay from its result.
+halving (a step is taken only where the misfit falls), from the protocol's convention as the first guess; its
+Jacobian is the replay's exact sensitivity to the start (engine.session.START_RATES), so the fit runs on the
+compiled engine, and both engines replay from its result.
 """
 
 import dataclasses

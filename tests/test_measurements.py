@@ -180,7 +180,8 @@ def test_yaw_rate_in_degrees(good):
         (lambda d: d.update(final_head_xy_m=[1.0]), "final_head_xy_m: expected [x, y]"),
         (lambda d: d["initial_head_pose"].pop("yaw_rad"), "initial_head_pose.yaw_rad: missing"),
         (lambda d: d.update(stop={"type": "revolutions", "count": -2}), "stop.count: must be > 0"),
-        (lambda d: d.update(initial_head_rates={"vx_m_s": 0.1, "vy_m_s": 0.0}), "initial_head_rates.yaw_rate_rad_s: missing"),
+        (lambda d: d.update(initial_head_rates={"vx_m_s": 0.1, "vy_m_s": 0.0}),
+         "initial_head_rates.yaw_rate_rad_s: missing"),
         (lambda d: d.update(initial_head_rates={"vx_m_s": 0.1, "vy_m_s": None, "yaw_rate_rad_s": 0.0}),
          "initial_head_rates.vy_m_s: expected a number"),
     ],
@@ -192,7 +193,8 @@ def test_bad_json_keys(good, edit, fragment):
 
 def test_measured_start_rates_round_trip_and_are_optional(good, tmp_path):
     assert load_campaign(good).trials[0].initial_head_rates is None
-    write_trial(tmp_path / "rates", "t1", dataclasses.replace(make_trial(), initial_head_rates=np.array([0.1, -0.02, 0.7])))
+    given = dataclasses.replace(make_trial(), initial_head_rates=np.array([0.1, -0.02, 0.7]))
+    write_trial(tmp_path / "rates", "t1", given)
     assert np.array_equal(load_campaign(tmp_path / "rates").trials[0].initial_head_rates, [0.1, -0.02, 0.7])
 
 
