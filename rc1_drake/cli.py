@@ -191,8 +191,8 @@ def make_parser() -> argparse.ArgumentParser:
     dgn.add_argument("--no-probe-study", action="store_true",
                      help="do not simulate short probe trials to name the experiment that would see an effect "
                           "not detectable here")
-    _add_start_rates(dgn, default="rest", fit="three nuisance coordinates per trial in every fit, beside the "
-                                              "physics: for data whose start follows no known convention")
+    _add_start_rates(dgn, default="rest", fit="three nuisance coordinates per trial, fixed by its first 0.5 s in "
+                                              "every fit: for data whose start follows no known convention")
     _add_outputs(dgn, out_help="write the diagnosed model (friction and accepted effects; default "
                                "out/<campaign>.model.yaml)")
     # Every simulating command picks its engine.

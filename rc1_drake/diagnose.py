@@ -52,7 +52,7 @@ from .config import FRICTION_NAMES, START_MODES, Z95, Friction
 from .effects import LIBRARY, active, candidate_names, effect_values, potentiometer_faults
 from .engine import default_engine
 from .replay import with_rest_start
-from .start import START_NAMES
+from .start import START_FIT_S, START_NAMES, start_residual
 
 P_ACCEPT = 2.7e-3  # Wald test of a candidate's parameters against 0: |z| > 3 for one parameter
 MIN_HELD_OUT_REDUCTION = 0.10  # a candidate "helps" when the simulated held-out error falls by this fraction
@@ -75,7 +75,7 @@ POLISH_STEPS = 3  # Gauss-Newton steps on an accepted model, while simulation co
 POLISH_TOLERANCE = 0.5  # ... and while the accepted effect's step exceeds this many standard errors
 INPUT_NOISE_SAMPLES = 6  # bootstrap replays per trial for the replay's bias and input noise (replay_error)
 # A trial's start (its head's vx, vy, yaw rate at t = 0) as nuisance coordinates: forward-difference steps
-# and bounds (m/s, m/s, rad/s). The data, not a convention, fix it, fitted beside the physics in every fit.
+# and bounds (m/s, m/s, rad/s). Its first START_FIT_S of data, not a convention, fix it in every fit (fit).
 START = "start"
 START_STEPS = (0.02, 0.02, 0.1)
 START_BOUNDS = (1.0, 1.0, 5.0)
@@ -151,7 +151,8 @@ def model_at(friction: Friction, effects: Dict[str, float], coordinates: List[Co
 # ---------------------------------------------------------------------------------------------- simulation
 
 def _evaluate(trial, friction, effects) -> tuple:
-    """One replay, scored: (standardized residuals, Eq. 6 error %, yaw-rate fit %, its end time s)."""
+    """One replay, scored: (standardized residuals, Eq. 6 error %, yaw-rate fit %, its end time s, the
+    standardized residuals of its first START_FIT_S at the full sampling rate: start.start_residual)."""
     from .compare import fit_percent, simulator_error
 
     run = idf._replay(trial, friction, effects)
@@ -159,7 +160,8 @@ def _evaluate(trial, friction, effects) -> tuple:
     inside = t <= run.t[-1] + 1e-9
     fit = fit_percent(trial.head_yaw_rate[inside], np.interp(t[inside], run.t, run.head_yaw_rate))
     return (idf.trial_residual(trial, run), simulator_error(run.head_xy[-1], trial.final_head_xy,
-                                                            trial.initial_head_pose[:2]), fit, float(run.t[-1]))
+                                                            trial.initial_head_pose[:2]), fit, float(run.t[-1]),
+            start_residual(trial, run, START_FIT_S))
 
 
 def replay_error(trial, friction, effects, until: float, samples: int, seed: int) -> tuple:
@@ -176,7 +178,8 @@ def replay_error(trial, friction, effects, until: float, samples: int, seed: int
     made = bootstrap_twin(trial, friction, effects, until)
     if made is None:
         return None
-    return _draws_mean_and_covariance([bootstrap_draw(*made, friction, effects, until, seed, i) for i in range(samples)])
+    return _draws_mean_and_covariance([bootstrap_draw(*made, friction, effects, until, seed, i)
+                                       for i in range(samples)])[:2]
 
 
 def bootstrap_twin(trial, friction, effects, until: float) -> Optional[tuple]:
@@ -200,9 +203,10 @@ def bootstrap_twin(trial, friction, effects, until: float) -> Optional[tuple]:
 _TWIN_REPLAYERS: dict = {}  # per worker process: a twin (its id and angles) -> its Replayer, the last few only
 
 
-def bootstrap_draw(twin, sigma_rad: float, friction, effects, until: float, seed: int, index: int) -> np.ndarray:
+def bootstrap_draw(twin, sigma_rad: float, friction, effects, until: float, seed: int, index: int) -> tuple:
     """Draw `index` of replay_error: the twin replayed at the model from its angles plus the `index`-th noise
-    draw of the stream `seed` (so that draws split over processes are the ones one process would make)."""
+    draw of the stream `seed` (so that draws split over processes are the ones one process would make); its
+    residuals, and those of its start rows (start.start_residual)."""
     from .replay import Replayer
 
     key = (default_engine(), twin.trial_id, twin.q.tobytes())
@@ -214,15 +218,18 @@ def bootstrap_draw(twin, sigma_rad: float, friction, effects, until: float, seed
     for _ in range(index):
         replayer.angle_noise(rng, sigma_rad)
     angles = twin.q + replayer.angle_noise(rng, sigma_rad)
-    return idf.trial_residual(twin, replayer.run_with_angles(friction, effects, angles), until=until)
+    run = replayer.run_with_angles(friction, effects, angles)
+    return idf.trial_residual(twin, run, until=until), start_residual(twin, run, START_FIT_S)
 
 
 def _draws_mean_and_covariance(draws) -> Optional[tuple]:
-    if len({len(d) for d in draws}) != 1:
+    """(mean, covariance) of the draws' residuals, and the mean of their start rows' (None where they differ)."""
+    if len({len(d[0]) for d in draws}) != 1:
         return None
-    draws = np.array(draws)
-    deviation = draws - draws.mean(axis=0)
-    return draws.mean(axis=0), deviation.T @ deviation / max(len(draws) - 1, 1)
+    residuals = np.array([d[0] for d in draws])
+    deviation = residuals - residuals.mean(axis=0)
+    start = np.mean([d[1] for d in draws], axis=0) if len({len(d[1]) for d in draws}) == 1 else None
+    return residuals.mean(axis=0), deviation.T @ deviation / max(len(draws) - 1, 1), start
 
 
 def _replay_and_score(trial, friction, effects) -> tuple:
@@ -263,6 +270,10 @@ class Linearization:
     weights: Optional[np.ndarray] = None  # per trial (trial_weights of the noise, by default)
     bias: Optional[List[np.ndarray]] = None  # per trial: the replay's own miss (replay_error), taken off r0
     ends: Optional[List[float]] = None  # per trial: where its replay at (friction, effects) ended, s
+    # per trial, the residuals of its first START_FIT_S (the rows that fix its start), and their columns
+    w0: Optional[List[np.ndarray]] = None
+    wcolumns: Optional[Dict[str, List[np.ndarray]]] = None
+    start_bias: Optional[List[np.ndarray]] = None  # per trial: the replay's own miss on its start rows
 
     def __post_init__(self):
         if self.weights is None:
@@ -289,6 +300,11 @@ class Linearization:
         out = residual.copy()
         out[:2] -= bias[:2]
         return out
+
+    def start_corrected(self, k: int, residual: np.ndarray) -> np.ndarray:
+        """Trial k's start rows with the replay's own miss on them taken off (where it lines up)."""
+        bias = None if self.start_bias is None else self.start_bias[k]
+        return residual if bias is None or len(bias) != len(residual) else residual - bias
 
     def eq6_without_miss(self, k: int, corrected: np.ndarray) -> float:
         """Paper Eq. 6 of trial k from its bias-corrected residuals: the final position's error with the
@@ -338,28 +354,101 @@ class Fit:
         return float(sum(float(h @ h) for h in self.held_out))
 
 
+def _own_start(coords, k: int) -> List[int]:
+    """The indices among `coords` of trial k's own START coordinates."""
+    return [i for i, c in enumerate(coords) if c.start_of is not None and c.start_of[0] == k]
+
+
+def _start_rows(lin: Linearization, coords, k: int) -> tuple:
+    """Trial k's start rows (Linearization.w0) and their columns by `coords`."""
+    return lin.w0[k], np.column_stack([lin.wcolumns[c.name][k] for c in coords]) if coords else np.zeros((len(lin.w0[k]), 0))
+
+
+def _profiled_rows(lin: Linearization, coords, trials) -> tuple:
+    """lin.rows (weighted) over the physics among `coords`, each trial's start profiled out: where its start
+    s = -G (w + W p) is fitted to its start rows (w, W; G = pinv(W_s)) for any physics step p, its rows
+    r + X p + A s are r - A G w + (X - A G W) p (A: its start columns). Also, per trial, A G (weighted; None
+    without a start of its own), which carries the start rows' noise into its rows."""
+    physics = [c for c in coords if c.start_of is None]
+    x, r, channels, counts = lin.rows([c.name for c in physics], trials, weighted=True)
+    carries, start = [], 0
+    for k, n in zip(trials, counts, strict=True):
+        own = [coords[i] for i in _own_start(coords, k)]
+        carry = None
+        if own:
+            w, big_w = _start_rows(lin, own + physics, k)
+            carry = lin.weights[k] * np.column_stack([lin.columns[c.name][k] for c in own]) @ np.linalg.pinv(
+                big_w[:, :len(own)])
+            r[start:start + n] -= carry @ w
+            x[start:start + n] -= carry @ big_w[:, len(own):]
+        carries.append(carry)
+        start += n
+    return x, r, channels, counts, carries
+
+
+def _solve(lin: Linearization, coords, trials, lower, upper) -> np.ndarray:
+    """The bounded least-squares step of `coords` on `trials`: the physics on all rows, each trial's start on
+    its start rows given the physics (_profiled_rows)."""
+    d = np.zeros(len(coords))
+    physics = [i for i, c in enumerate(coords) if c.start_of is None]
+    x, r, _, _, _ = _profiled_rows(lin, coords, trials)
+    d[physics] = bounded_least_squares(x, r, lower[physics], upper[physics])
+    for k in trials:
+        _fit_own_start(lin, coords, k, d, lower, upper)
+    return d
+
+
+def _fit_own_start(lin: Linearization, coords, k: int, d, lower, upper) -> None:
+    """Set d's entries of trial k's start to their fit on its start rows, the other entries held."""
+    idx = _own_start(coords, k)
+    if idx:
+        w, big_w = _start_rows(lin, coords, k)
+        others = [i for i in range(len(coords)) if i not in idx]
+        target = w + big_w[:, others] @ d[others]
+        d[idx] = np.clip(-np.linalg.pinv(big_w[:, idx]) @ target, lower[idx], upper[idx])
+
+
+def _start_rows_variance(lin: Linearization, coords, k: int, d) -> float:
+    """The variance of trial k's start rows about the fit d (standardized units; their own dof)."""
+    w, big_w = _start_rows(lin, coords, k)
+    e = w + big_w @ d
+    return float(e @ e) / max(len(e) - len(_own_start(coords, k)), 1)
+
+
 def fit(lin: Linearization, names: List[str]) -> Fit:
-    """Bounded weighted linear least squares over `names` (each trial's rows times its weight), its
-    covariance (the sandwich with channel variances and input noise, or the trial jackknife where that
-    is larger), and leave-one-trial-out predictions."""
+    """Bounded weighted linear least squares over `names` (each trial's rows times its weight; a trial's
+    start, where among them, fitted to its first START_FIT_S only: _solve), its covariance (the sandwich
+    with channel variances and input noise, or the trial jackknife where that is larger), and
+    leave-one-trial-out predictions."""
     coords = [lin.coordinate(n) for n in names]
     reach = np.array([math.inf if c.owner == "friction" else TRUST_STEPS * c.step for c in coords])
     lower = np.maximum(np.array([c.lower - c.value for c in coords]), -reach)
     upper = np.minimum(np.array([c.upper - c.value for c in coords]), reach)
     everything = list(range(len(lin.trials)))
-    x, r, channels, counts = lin.rows(names, everything, weighted=True)
-    d = bounded_least_squares(x, r, lower, upper)
-    e = r + x @ d
+    x_all, r_all, channels, counts = lin.rows(names, everything, weighted=True)
+    d = _solve(lin, coords, everything, lower, upper)
+    e = r_all + x_all @ d
     variance = idf._channel_variances(e, channels, len(names))
-    xtx = x.T @ x
-    inv = np.linalg.pinv(xtx) if len(names) else np.zeros((0, 0))
-    middle = np.zeros_like(xtx)
-    start = 0
-    for k, n in enumerate(counts):
-        xk = x[start:start + n]
-        middle += xk.T @ (np.diag(variance[start:start + n]) + lin.weights[k] ** 2 * lin.noise[k]) @ xk
+    physics = [i for i, c in enumerate(coords) if c.start_of is None]
+    x, _, _, _, carries = _profiled_rows(lin, coords, everything)
+    inv = np.linalg.pinv(x.T @ x) if physics else np.zeros((0, 0))
+    middle = np.zeros_like(inv)
+    start_variances, start = {}, 0
+    for k, (n, carry) in enumerate(zip(counts, carries, strict=True)):
+        sigma = np.diag(variance[start:start + n]) + lin.weights[k] ** 2 * lin.noise[k]
+        if carry is not None:
+            start_variances[k] = _start_rows_variance(lin, coords, k, d)
+            sigma = sigma + start_variances[k] * carry @ carry.T
+        middle += x[start:start + n].T @ sigma @ x[start:start + n]
         start += n
-    cov = inv @ middle @ inv
+    cov = np.zeros((len(names), len(names)))
+    cov[np.ix_(physics, physics)] = inv @ middle @ inv
+    for k, v in start_variances.items():  # a start's: its start rows' noise and what the physics' uncertainty moves
+        idx = _own_start(coords, k)
+        _, big_w = _start_rows(lin, coords, k)
+        g = np.linalg.pinv(big_w[:, idx])
+        through = g @ big_w[:, physics]
+        cov[np.ix_(idx, idx)] = v * g @ g.T + through @ cov[np.ix_(physics, physics)] @ through.T
     per_trial = [part / w for part, w in zip(np.split(e, np.cumsum(counts)[:-1]), lin.weights, strict=True)]
     held, held_steps = [], []
     for k in everything:
@@ -368,22 +457,17 @@ def fit(lin: Linearization, names: List[str]) -> Fit:
             held.append(lin.r0[k].copy())
             held_steps.append(np.zeros(len(names)))
             continue
-        xr, rr, _, _ = lin.rows(names, rest, weighted=True)
-        dk = bounded_least_squares(xr, rr, lower, upper)
-        xk, _, _, _ = lin.rows(names, [k])
-        own = [i for i, c in enumerate(coords) if c.start_of is not None and c.start_of[0] == k]
-        if own:  # its start is its own: fitted to it, with the physics the other trials gave
-            dk[own] = bounded_least_squares(xk[:, own], lin.r0[k] + xk @ dk, lower[own], upper[own])
-        held.append(lin.r0[k] + xk @ dk)
+        dk = _solve(lin, coords, rest, lower, upper)
+        _fit_own_start(lin, coords, k, dk, lower, upper)  # its start is its own: fitted to it, physics held
+        held.append(lin.r0[k] + lin.rows(names, [k])[0] @ dk)
         held_steps.append(dk)
-    shared = [i for i, c in enumerate(coords) if c.start_of is None]  # a trial's start is its own: no jackknife
-    if len(everything) >= 3 and shared:
+    if len(everything) >= 3 and physics:  # a trial's start is its own: no jackknife
         # The trial jackknife sees what the sandwich assumes away: residuals correlated within a trial, and
         # a replay that misses its trial by more than the noise (measured: the toe fitted per trial of the
         # shipped campaign scatters 1.9-2.7 deg, where the sandwich's standard error was 0.04).
-        steps = np.array(held_steps)[:, shared]
+        steps = np.array(held_steps)[:, physics]
         jackknife = (len(steps) - 1) / len(steps) * (steps - steps.mean(axis=0)).T @ (steps - steps.mean(axis=0))
-        block = np.ix_(shared, shared)
+        block = np.ix_(physics, physics)
         if np.trace(jackknife) > np.trace(cov[block]):
             cov[block] = jackknife
     se = np.sqrt(np.clip(np.diag(cov), 0.0, None))
@@ -655,24 +739,30 @@ def linearize(trials, friction, effects, candidates: List[str], evaluator: Evalu
                 jobs.append((starts_at(trials, coords, values)[k] if c.start_of else t, *model))
                 where.append((c.name, k))
     outputs = evaluator.map(_evaluate, jobs, f"linearizing at the model ({len(coords)} directions)")
-    bias = None
+    bias = start_bias = None
     if noise is None:
-        bias, noise = _replay_errors(trials, friction, effects, [b[3] for b in base], [len(b[0]) for b in base],
+        bias, noise, start_bias = _replay_errors(trials, friction, effects, [b[3] for b in base], [len(b[0]) for b in base],
                                      evaluator, input_noise_samples)
     columns = {c.name: [np.zeros(len(b[0])) for b in base] for c in coords}
+    wcolumns = {c.name: [np.zeros(len(b[4])) for b in base] for c in coords}
     for (name, k), o in zip(where, outputs, strict=True):
+        step = _signed_step(next(c for c in coords if c.name == name))
         if len(o[0]) == len(base[k][0]):  # a replay that stops elsewhere has no column: 0
-            columns[name][k] = (o[0] - base[k][0]) / _signed_step(next(c for c in coords if c.name == name))
+            columns[name][k] = (o[0] - base[k][0]) / step
+        if len(o[4]) == len(base[k][4]):
+            wcolumns[name][k] = (o[4] - base[k][4]) / step
     lin = Linearization(trials=list(trials), friction=friction, effects=dict(effects), coordinates=coords,
                         r0=[b[0] for b in base], eq6=[b[1] for b in base], yaw_fit=[b[2] for b in base],
-                        columns=columns, noise=list(noise), bias=bias, ends=[b[3] for b in base])
+                        columns=columns, noise=list(noise), bias=bias, ends=[b[3] for b in base],
+                        w0=[b[4] for b in base], wcolumns=wcolumns, start_bias=start_bias)
     lin.r0 = [lin.corrected(k, r) for k, r in enumerate(lin.r0)]
+    lin.w0 = [lin.start_corrected(k, w) for k, w in enumerate(lin.w0)]
     return lin
 
 
 def _replay_errors(trials, friction, effects, ends, lengths, evaluator: Evaluator, samples: int) -> tuple:
     """Per trial, the replay's bias (None where the bootstrap does not line up with the trial's residuals of
-    `lengths`) and its input-noise covariance (replay_error), at (friction, effects)."""
+    `lengths`), its input-noise covariance (replay_error) and the bias of its start rows, at (friction, effects)."""
     # Twins first, then every draw a job of its own: a campaign of a few trials keeps every core busy.
     twins = evaluator.map(bootstrap_twin, [(t, friction, effects, end) for t, end in zip(trials, ends, strict=True)],
                           "the replays' own error: noise-free twins")
@@ -681,8 +771,9 @@ def _replay_errors(trials, friction, effects, ends, lengths, evaluator: Evaluato
     draws = iter(evaluator.map(bootstrap_draw, jobs, "the replays' own error: the twins replayed with noisy angles"))
     errors = [None if made is None else _draws_mean_and_covariance([next(draws) for _ in range(samples)])
               for made in twins]
-    bias, noise = [], []
+    bias, noise, start_bias = [], [], []
     for error, n in zip(errors, lengths, strict=True):
+        start_bias.append(None if error is None else error[2])
         if error is None or len(error[0]) != n:
             bias.append(None)
             noise.append(np.zeros((n, n)))
@@ -690,18 +781,27 @@ def _replay_errors(trials, friction, effects, ends, lengths, evaluator: Evaluato
         bias.append(error[0])
         # The bias is a mean of `samples` draws: taking it off adds 1 / samples of their covariance.
         noise.append(error[1] * (1.0 + 1.0 / samples))
-    return bias, noise
+    return bias, noise, start_bias
 
 
 def _with_replay_error(lin: Linearization, evaluator: Evaluator, samples: int) -> Linearization:
     """`lin` with the replay's bias and input noise measured again at its model (their residuals moved
     from the old bias to the new one, the trial weights recomputed)."""
-    bias, noise = _replay_errors(lin.trials, lin.friction, lin.effects, lin.ends, [len(r) for r in lin.r0],
-                                 evaluator, samples)
-    old = lin.bias or [None] * len(lin.trials)
-    r0 = [r + (0.0 if before is None else before) - (0.0 if after is None else after)
-          for r, before, after in zip(lin.r0, old, bias, strict=True)]
-    return dataclasses.replace(lin, r0=r0, bias=bias, noise=noise, weights=trial_weights(lin.trials, noise))
+    bias, noise, start_bias = _replay_errors(lin.trials, lin.friction, lin.effects, lin.ends,
+                                             [len(r) for r in lin.r0], evaluator, samples)
+    r0 = [r + _moved_bias(before, after, r) for r, before, after in zip(lin.r0, lin.bias or [None] * len(lin.r0), bias,
+                                                                         strict=True)]
+    w0 = [w + _moved_bias(before, after, w) for w, before, after in zip(
+        lin.w0, lin.start_bias or [None] * len(lin.w0), start_bias, strict=True)]
+    return dataclasses.replace(lin, r0=r0, bias=bias, noise=noise, weights=trial_weights(lin.trials, noise), w0=w0,
+                               start_bias=start_bias)
+
+
+def _moved_bias(before, after, residual) -> np.ndarray:
+    """What moves a residual from one replay bias taken off to another (None: none taken off, or not lined up)."""
+    def taken(bias):
+        return 0.0 if bias is None or len(bias) != len(residual) else bias
+    return taken(before) - taken(after)
 
 
 def _acts_in_failed_joints_only(c: Coordinate) -> bool:
@@ -761,7 +861,8 @@ def diagnose(campaign, *, friction: Optional[Friction] = None, effects=None, can
     physical effects, and the potentiometer faults of joints whose readings pass their limit); the friction
     coefficients named in `held` stay at their values (no replays spent on them). The head's rates at t = 0 of a
     trial that does not give them: `start_rates` "rest", the protocol's convention; "fit", three nuisance
-    coordinates per trial in every fit (start_coordinates), for data whose start follows no known convention."""
+    coordinates per trial (start_coordinates) fixed in every fit by its first START_FIT_S (fit), for data whose
+    start follows no known convention."""
     from .executor import make_executor
 
     started = time.perf_counter()
@@ -975,12 +1076,12 @@ def _step(label, score: HeldOutScore, trials) -> dict:
 
 def _starts_fitted(lin: Linearization, nuisance: List[str], free: List[str], evaluator) -> Linearization:
     """`lin` with the trials' starts (`nuisance`) fitted with today's free friction on all trials, where
-    simulation confirms it (the friction stays: the round's refit moves it)."""
+    simulation confirms it on their start rows (the friction stays: the round's refit moves it)."""
     if not nuisance:
         return lin
     fitted = fit(lin, nuisance + free)
     moved = _moved(lin, nuisance, fitted.values[:len(nuisance)], evaluator, what="the trials' starts fitted")
-    return moved if lin.weighted_sum_of_squares(moved.r0) < lin.weighted_sum_of_squares(lin.r0) else lin
+    return moved if sum(w @ w for w in moved.w0) < sum(w @ w for w in lin.w0) else lin  # what fixes them
 
 
 def _moved(lin: Linearization, names: List[str], values, evaluator, **kwargs) -> Linearization:
@@ -1003,33 +1104,41 @@ def _relinearize(lin: Linearization, friction, effects, evaluator, what="residua
     stays = [len(o[0]) != len(r) for o, r in zip(out, lin.r0, strict=True)]
     target = lin
     if samples:
-        bias, noise = _replay_errors(trials, friction, effects, [o[3] for o in out], [len(o[0]) for o in out],
-                                     evaluator, samples)
+        bias, noise, start_bias = _replay_errors(trials, friction, effects, [o[3] for o in out],
+                                                 [len(o[0]) for o in out], evaluator, samples)
         old = lin.bias or [None] * len(stays)
+        old_start = lin.start_bias or [None] * len(stays)
         bias = [old[k] if s else b for k, (s, b) in enumerate(zip(stays, bias, strict=True))]
+        start_bias = [old_start[k] if s else b for k, (s, b) in enumerate(zip(stays, start_bias, strict=True))]
         noise = [lin.noise[k] if s else n for k, (s, n) in enumerate(zip(stays, noise, strict=True))]
-        target = dataclasses.replace(lin, bias=bias, noise=noise, weights=trial_weights(lin.trials, noise))
+        target = dataclasses.replace(lin, bias=bias, noise=noise, weights=trial_weights(lin.trials, noise),
+                                     start_bias=start_bias)
     values = _coordinate_values(lin.coordinates, friction, effects, trials)
     step = np.array(values) - np.array([c.value for c in lin.coordinates])
     names = [c.name for c in lin.coordinates]
     columns = {n: list(cols) for n, cols in lin.columns.items()}
-    r0, ends = [], []
+    wcolumns = {n: list(cols) for n, cols in lin.wcolumns.items()}
+    r0, ends, w0 = [], [], []
     for k, (o, r) in enumerate(zip(out, lin.r0, strict=True)):
         if stays[k]:
             r0.append(r)
             ends.append(lin.ends[k])
+            w0.append(lin.w0[k])
             continue
         ends.append(o[3])
         new = target.corrected(k, o[0])
         r0.append(new)
+        w0.append(target.start_corrected(k, o[4]) if len(o[4]) == len(lin.w0[k]) else lin.w0[k])
         if step @ step > 0:
-            jacobian = np.column_stack([columns[n][k] for n in names])
-            jacobian += np.outer(new - r - jacobian @ step, step) / (step @ step)
-            for j, n in enumerate(names):
-                columns[n][k] = jacobian[:, j]
+            for cols, old, now in ((columns, r, new), (wcolumns, lin.w0[k], w0[-1])):
+                jacobian = np.column_stack([cols[n][k] for n in names])
+                jacobian += np.outer(now - old - jacobian @ step, step) / (step @ step)
+                for j, n in enumerate(names):
+                    cols[n][k] = jacobian[:, j]
     coords = [dataclasses.replace(c, value=v) for c, v in zip(lin.coordinates, values, strict=True)]
     return dataclasses.replace(target, trials=trials, friction=friction, effects=dict(effects), coordinates=coords,
-                               r0=r0, columns=columns, eq6=[o[1] for o in out], yaw_fit=[o[2] for o in out], ends=ends)
+                               r0=r0, columns=columns, eq6=[o[1] for o in out], yaw_fit=[o[2] for o in out], ends=ends,
+                               w0=w0, wcolumns=wcolumns)
 
 
 def _polish(lin: Linearization, names: List[str], effect: str, evaluator, samples: int) -> tuple:

@@ -34,7 +34,7 @@ class StartEstimate:
     samples: int  # measurements used
 
 
-def _start_residual(trial, run, window: float) -> np.ndarray:
+def start_residual(trial, run, window: float) -> np.ndarray:
     """Standardized misfit of a replay over the trial's first `window` s: camera x, y where seen, IMU yaw rate."""
     t = trial.t - trial.t[0]
     inside = t <= min(window, run.t[-1]) + 1e-9
@@ -50,8 +50,8 @@ def _start_residual(trial, run, window: float) -> np.ndarray:
 
 def _residual_and_jacobian(trial, session, scenario, x0, window: float) -> tuple:
     run = session.simulate(scenario, initial=x0, sensitivities=START_NAMES)
-    r = _start_residual(trial, run, window)
-    return r, run.residual_jacobian(lambda moved: _start_residual(trial, moved, window), r)
+    r = start_residual(trial, run, window)
+    return r, run.residual_jacobian(lambda moved: start_residual(trial, moved, window), r)
 
 
 def fit_start(trial, session, scenario, x0, *, window: float = START_FIT_S) -> StartEstimate:

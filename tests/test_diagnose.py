@@ -97,6 +97,42 @@ def test_fit_recovers_a_linear_truth_and_its_held_out_predictions_are_exact():
     assert only_a.held_out_sum_of_squares() > 1.0  # the missing column shows on held-out trials
 
 
+def test_a_trials_start_is_fitted_to_its_start_rows_and_the_physics_to_all_rows():
+    """Noise-free, linear: the fit recovers the physics and every trial's start exactly (held-out predictions
+    too); then a misfit along a trial's start columns in its later rows (what a missing effect's drift looks
+    like) leaves that trial's start where its start rows put it, as the start's definition says."""
+    rng = np.random.default_rng(3)
+    n_trials, rows, start_rows = 4, 30, 20
+    lin = _linearization({"a": list(rng.normal(size=(n_trials, 12))), "b": list(rng.normal(size=(n_trials, 12)))},
+                         [np.zeros(12)] * n_trials, trials=n_trials)
+    starts = [dg.Coordinate(f"t{k}:{i}", dg.START, 0.0, -1.0, 1.0, 1.0, (k, i)) for k in range(n_trials)
+              for i in range(3)]
+    coords = [lin.coordinates[0], *starts]
+
+    def column(c, k, size):  # a start moves its own trial only
+        return rng.normal(size=size) if c.start_of is None or c.start_of[0] == k else np.zeros(size)
+
+    columns = {c.name: [column(c, k, rows) for k in range(n_trials)] for c in coords}
+    wcolumns = {c.name: [column(c, k, start_rows) for k in range(n_trials)] for c in coords}
+    truth = np.r_[0.7, rng.uniform(-0.5, 0.5, 3 * n_trials)]
+    names = [c.name for c in coords]
+
+    def at_truth(cols):
+        return [-np.column_stack([cols[n][k] for n in names]) @ truth for k in range(n_trials)]
+
+    lin = dataclasses.replace(lin, coordinates=coords, columns=columns, r0=at_truth(columns), w0=at_truth(wcolumns),
+                              wcolumns=wcolumns, noise=[np.zeros((rows, rows))] * n_trials)
+    fitted = dg.fit(lin, names)
+    assert fitted.values == pytest.approx(truth, abs=1e-9)
+    assert all(np.abs(h).max() < 1e-9 for h in fitted.held_out)
+    drift = np.column_stack([columns[f"t0:{i}"][0] for i in range(3)]) @ np.array([0.3, -0.2, 0.1])
+    drifted = dg.fit(dataclasses.replace(lin, r0=[lin.r0[0] + drift, *lin.r0[1:]]), names).values
+    own = np.column_stack([wcolumns[f"t0:{i}"][0] for i in range(3)])
+    by_hand = np.linalg.lstsq(own, -(lin.w0[0] + wcolumns["a"][0] * drifted[0]), rcond=None)[0]
+    assert drifted[1:4] == pytest.approx(by_hand, abs=1e-9)  # its start rows' fit, at the physics fitted
+    assert np.abs(drifted[1:4] - truth[1:4]).max() < 0.1 * np.abs([0.3, -0.2, 0.1]).max()  # the drift stays out
+
+
 def test_wald_test_finds_a_real_effect_and_not_a_null_one():
     rng = np.random.default_rng(3)
     a, b, noise = rng.normal(size=(4, 12)), rng.normal(size=(4, 12)), rng.normal(size=(4, 12))
@@ -208,7 +244,7 @@ def test_a_noise_free_trial_is_its_own_twin_and_its_replays_error_is_all_bias(tm
         np.testing.assert_allclose(twin.final_head_xy, trial.final_head_xy, rtol=0, atol=1e-12)
         np.testing.assert_allclose(twin.q, trial.q, rtol=0, atol=1e-12)  # NaN (the failed joint) included
         np.testing.assert_allclose(twin.camera, trial.camera, rtol=0, atol=1e-12)
-        residual, _, _, until = dg._evaluate(trial, Friction(), {})
+        residual, _, _, until, _ = dg._evaluate(trial, Friction(), {})
         bias, covariance = dg.replay_error(trial, Friction(), {}, until, 2, 0)
         # The replay misses its own noise-free trial (measured: 1-2 mm) and the bootstrap sees exactly that:
         # what is left once the bias is off is the potentiometer noise the smoothing finds in clean angles.
