@@ -161,6 +161,8 @@ def make_parser() -> argparse.ArgumentParser:
                           "stay at them) and effects, which stay fixed")
     idn.add_argument("--freeze", action="append", default=[], choices=FRICTION_NAMES, metavar="NAME",
                      help="keep a coefficient at its start value (repeatable)")
+    _add_start_rates(idn, default="rest", fit="fitted once per trial to its first 0.5 s of camera path and IMU, "
+                                              "at the start model, and held through the fit")
     _add_outputs(idn, out_help="write a model file: the identified coefficients and the (fixed) effects")
 
     cmpn = sub.add_parser("compensate", help="bias, heading feedback and reverse driving for failed joints")
@@ -484,22 +486,31 @@ def cmd_identify(args) -> int:
     from .identify import (DEFAULT_PARAMETERS, PAPER_MANUAL, avs_figure, friction_to_yaml, held_out_errors,
                            identify_avs, identify_equation_error, identify_program, seeded_start,
                            split_trials)
+    from .replay import fit_starts
+    from .start import START_NAMES
 
     def ids(text):
         return None if not text else [t.strip() for t in text.split(",") if t.strip()]
 
     campaign = loaded_campaign(args.campaign)
     trials = ids(args.trials)
-    estimation, validation = split_trials(campaign, trials=trials, validation=ids(args.validation))
+    split_trials(campaign, trials=trials, validation=ids(args.validation))  # a bad id stops here, before any work
     parameters = [dataclasses.replace(p, frozen=p.name in args.freeze) for p in DEFAULT_PARAMETERS]
     start_model = load_model_file(args.start) if args.start else ModelFile(friction=PAPER_MANUAL)
     start_friction, effects = start_model.friction, start_model.effects or None  # the effects stay fixed
+    record = {}
+    if args.start_rates == "fit":
+        campaign = fit_starts(campaign, friction=start_friction, effects=effects, workers=args.workers,
+                              scheduler=args.scheduler)
+        record["starts"] = {t.trial_id: dict(zip(START_NAMES, map(float, t.initial_head_rates), strict=True))
+                            for t in campaign.trials}
+    estimation, validation = split_trials(campaign, trials=trials, validation=ids(args.validation))
 
     def progress(done, total, name, error):
         print(f"  iteration {done}/{total}: {name}, mean Eq. 6 error {error:.2f}%", file=sys.stderr, flush=True)
 
     start = time.perf_counter()
-    record, spread, warnings = {}, None, []
+    spread, warnings = None, []
     if args.method == "avs":
         result, spread = identify_avs(campaign, trials=trials, iterations=args.iterations, workers=args.workers,
                                       scheduler=args.scheduler, parameters=parameters, progress=progress,

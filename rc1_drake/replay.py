@@ -12,6 +12,7 @@ the sample times.
 import dataclasses
 import functools
 import math
+import os
 
 import numpy as np
 from pydrake.trajectories import PiecewisePolynomial
@@ -186,6 +187,25 @@ class Replayer:
             return self.session.simulate(scenario, initial=initial, sensitivities=sensitivities)
         finally:
             self.session.set_joint_reference(self.reference)
+
+
+def _with_fitted_start(trial: Trial, friction: Friction, effects) -> Trial:
+    if trial.initial_head_rates is not None:
+        return trial
+    replayer = Replayer(trial)
+    replayer.fit_start(friction, effects)
+    return replayer.trial
+
+
+def fit_starts(campaign, *, friction: Friction, effects=None, workers=None, scheduler=None):
+    """`campaign` with each trial's head rates at t = 0 fitted to its first 0.5 s at (friction, effects)
+    (Replayer.fit_start), where the trial does not give them: a start from the data, held through a fit."""
+    from .executor import make_executor
+
+    n = len(campaign.trials)
+    with make_executor(workers=workers or min(os.cpu_count() or 1, n), scheduler=scheduler) as executor:
+        trials = list(executor.map(_with_fitted_start, campaign.trials, [friction] * n, [effects] * n))
+    return dataclasses.replace(campaign, trials=trials)
 
 
 def replay(trial: Trial, friction: Friction, effects=None, numerics=None, *, engine: str | None = None) -> Run:

@@ -133,6 +133,9 @@ def test_a_trial_that_gives_its_start_rates_replays_from_them(tmp_path):
 def test_a_trial_recorded_in_motion_replays_closer_from_its_fitted_start(tmp_path):
     """Made by the independent model (reference.py) and recorded 1 s after the robot started: the protocol's
     start (centre of mass at rest) is wrong there, the start fitted to the first 0.5 s of data is not."""
+    from rc1_drake.config import Friction
+    from rc1_drake.identify import PAPER_MANUAL
+    from rc1_drake.replay import fit_starts
     from rc1_drake.synthesize import Noise
 
     silent = Noise().scaled(0.0)
@@ -145,6 +148,16 @@ def test_a_trial_recorded_in_motion_replays_closer_from_its_fitted_start(tmp_pat
     assert all(f.eq6_error_pct < r.eq6_error_pct for f, r in zip(fit.trials, rest.trials))
     with pytest.raises(ValueError, match="start must be one of"):
         compare_campaign(campaign, start="moving")
+    # Fitted once and carried by the trials (as `rc1 identify --start-rates fit` does, at its start model), the
+    # starts replay as compare's own.
+    carried = compare_campaign(fit_starts(campaign, friction=Friction(), workers=2), workers=2)
+    assert carried.mean_eq6_error_pct == pytest.approx(fit.mean_eq6_error_pct, rel=1e-9)
+    out = tmp_path / "identify.json"
+    assert main(["identify", str(tmp_path / "late"), "--method", "equation-error", "--start-rates", "fit",
+                 "--json", str(out), "--workers", "2"]) == 0
+    starts = json.loads(out.read_text())["starts"]
+    for trial in fit_starts(campaign, friction=PAPER_MANUAL, workers=2).trials:
+        assert list(starts[trial.trial_id].values()) == pytest.approx(trial.initial_head_rates, abs=1e-12)
 
 
 def test_the_start_fit_takes_only_steps_that_lower_its_misfit(tmp_path):
