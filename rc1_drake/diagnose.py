@@ -51,7 +51,7 @@ from . import identify as idf
 from .config import FRICTION_NAMES, START_MODES, Z95, Friction
 from .effects import LIBRARY, active, candidate_names, effect_values, potentiometer_faults
 from .engine import default_engine
-from .replay import with_rest_start
+from .replay import with_start_guess
 from .start import START_FIT_S, START_NAMES, start_residual
 
 P_ACCEPT = 2.7e-3  # Wald test of a candidate's parameters against 0: |z| > 3 for one parameter
@@ -722,8 +722,8 @@ def linearize(trials, friction, effects, candidates: List[str], evaluator: Evalu
     coefficients, the model's own effects and the candidates (and with `starts`, each trial's start:
     start_coordinates); when `noise` is None, the replays' own error (replay_error: their bias, taken off r0,
     and the input noise)."""
-    if starts:  # linearized at the trials' own rates, else the protocol's
-        trials = [with_rest_start(t) for t in trials]
+    if starts:  # linearized at the trials' own rates, else the protocol's with the IMU's first yaw rate
+        trials = [with_start_guess(t) for t in trials]
     coords = (start_coordinates(trials) if starts else []) + friction_coordinates(friction, held)
     for name in list(dict.fromkeys([*(e.name for e in active(effects)), *candidates])):
         coords += effect_coordinates(name, effects)
