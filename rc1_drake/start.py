@@ -18,6 +18,7 @@ import dataclasses
 import numpy as np
 
 from .config import RESIDUAL_SIGMAS, Stop
+from .effects import sensor_model
 
 START_FIT_S = 0.5  # the window of measurements that fixes the start
 START_ITERATIONS = 6
@@ -35,16 +36,17 @@ class StartEstimate:
 
 
 def start_residual(trial, run, window: float) -> np.ndarray:
-    """Standardized misfit of a replay over the trial's first `window` s: camera x, y where seen, IMU yaw rate."""
+    """Standardized misfit of a replay over the trial's first `window` s: camera x, y where seen, IMU yaw rate,
+    each as the sensors would report the replay (effects.SensorModel: a late camera, a biased IMU)."""
     t = trial.t - trial.t[0]
     inside = t <= min(window, run.t[-1]) + 1e-9
-    parts = [(np.interp(t[inside], run.t, run.state[:, 18]) - trial.head_yaw_rate[inside])
+    sensors = sensor_model(run.scenario.effects)
+    parts = [(sensors.imu(t[inside], run.t, run.state[:, 18]) - trial.head_yaw_rate[inside])
              / RESIDUAL_SIGMAS["yaw_rate_rad_s"]]
     if trial.camera is not None:
         seen = inside & ~np.isnan(trial.camera[:, 0])
-        for i in (0, 1):
-            parts.append((np.interp(t[seen], run.t, run.state[:, i]) - trial.camera[seen, i])
-                         / RESIDUAL_SIGMAS["camera_m"])
+        parts += list(((sensors.camera(t[seen], run.t, run.state[:, 0:2]) - trial.camera[seen, :2])
+                       / RESIDUAL_SIGMAS["camera_m"]).T)
     return np.concatenate(parts)
 
 
