@@ -361,7 +361,8 @@ def _own_start(coords, k: int) -> List[int]:
 
 def _start_rows(lin: Linearization, coords, k: int) -> tuple:
     """Trial k's start rows (Linearization.w0) and their columns by `coords`."""
-    return lin.w0[k], np.column_stack([lin.wcolumns[c.name][k] for c in coords]) if coords else np.zeros((len(lin.w0[k]), 0))
+    w = lin.w0[k]
+    return w, np.column_stack([lin.wcolumns[c.name][k] for c in coords]) if coords else np.zeros((len(w), 0))
 
 
 def _profiled_rows(lin: Linearization, coords, trials) -> tuple:
