@@ -70,6 +70,7 @@ REFERENCE = {  # a clearly visible strength on DESIGN's 3 s trials (diagnose.pro
     "ground_slope": ("ground_slope_deg", 4.0),  # the diagnosis searches floors within 5 deg (effects.GroundSlope)
     "stribeck_friction": ("stribeck_ratio", 2.0),
     "potentiometer_offset_j9": ("potentiometer_offset_j9_deg", 2.0),  # a sensor fault: joint 9 reads 2 deg high
+    "potentiometer_gain_j9": ("potentiometer_gain_j9_error", 0.04),  # a sensor fault: joint 9 reads 4% large
     "camera_delay": ("camera_delay_s", 0.1),  # a sensor fault: the camera's frames are stamped 0.1 s late
 }
 

@@ -48,7 +48,9 @@ DIAGNOSE_CASES = ((None, 0.0, "physical", "rest"), ("wheel_toe", 1.0, "physical"
                   (None, 0.0, "physical,sensor", "rest"), ("potentiometer_offset_j9", 2.5, "physical,sensor", "rest"),
                   ("camera_delay", 1.0, "physical", "rest"), ("camera_delay", 1.0, "physical,sensor", "rest"),
                   (None, 0.0, "physical,sensor", "fit"), ("potentiometer_offset_j9", 2.5, "physical,sensor", "fit"),
-                  ("camera_delay", 1.0, "physical,sensor", "fit"))
+                  ("camera_delay", 1.0, "physical,sensor", "fit"),
+                  ("potentiometer_gain_j9", 2.0, "physical,sensor", "rest"),
+                  ("potentiometer_gain_j9", 2.0, "physical,sensor", "fit"))
 SECTIONS = ("compare", "identify", "diagnose")
 # Seeds 0-5 shaped the sensor faults (their search bound, the regression examples in tests/test_sensor_faults.py),
 # seeds 6-11 the kinematic replay's joint limits (docs/findings.md): the diagnose rates are reported on seeds from

@@ -59,10 +59,20 @@ class SensorModel:
     Synthesis measures a truth through it; a replay reads the potentiometers back through it and predicts the
     camera and the IMU through it (identify.trial_residual, compare.score_trial)."""
 
-    angle_offsets_rad: np.ndarray  # (13,) what the potentiometers add to the joint angles
+    angle_offsets_rad: np.ndarray  # (13,) the potentiometers read angle_gains * angle + angle_offsets_rad
+    angle_gains: np.ndarray = dataclasses.field(default_factory=lambda: np.ones(NUM_JOINTS))
     camera_delay_s: float = 0.0  # a frame stamped t shows the head at t - delay
     imu_scale: float = 1.0  # the IMU reports imu_scale * yaw rate + imu_bias
     imu_bias_rad_s: float = 0.0
+
+    def potentiometers(self, q) -> np.ndarray:
+        """What the potentiometers read of joint angles q (..., 13), rad."""
+        return self.angle_gains * q + self.angle_offsets_rad
+
+    @property
+    def reads_angles(self) -> bool:
+        """Whether the potentiometers read the angles as they are (no offset, no gain error)."""
+        return not self.angle_offsets_rad.any() and bool(np.all(self.angle_gains == 1.0))
 
     def camera(self, t, run_t, run_xy_yaw) -> np.ndarray:
         """(len(t), k) the camera's report at sample times t of the run's (run_t, (N, k) head pose columns)."""
@@ -245,6 +255,14 @@ class ServoLag(Effect):
         return dataclasses.replace(gait, joints=joints)
 
 
+def _in_servo_loop(key: str, values) -> bool:
+    """A potentiometer fault's setting `key`: 1, in the servo's loop; 0, in the data acquisition only."""
+    setting = values[key]
+    if setting not in (0.0, 1.0):
+        raise Rc1Error(f"effects.{key}: must be 1 (the servo's loop) or 0 (the acquisition only), got {setting}")
+    return setting == 1.0
+
+
 class PotentiometerOffset(Effect):
     """A sensor fault: one joint's potentiometer reads its angle plus a constant offset. RC1 records the servos'
     own potentiometers (paper section 2), so the fault sits either in the servo's loop (a shifted potentiometer:
@@ -272,11 +290,7 @@ class PotentiometerOffset(Effect):
         return [dataclasses.replace(self.main, lower=-self.search_deg, upper=self.search_deg)]
 
     def _in_loop(self, values) -> bool:
-        setting = values[self.parameters[1].key]
-        if setting not in (0.0, 1.0):
-            raise Rc1Error(f"effects.{self.parameters[1].key}: must be 1 (the servo's loop) or 0 (the acquisition "
-                           f"only), got {setting}")
-        return setting == 1.0
+        return _in_servo_loop(self.parameters[1].key, values)
 
     def configure_sensors(self, sensors, values):
         self._in_loop(values)
@@ -292,6 +306,48 @@ class PotentiometerOffset(Effect):
         own = next((jg for jg in gait.joints if jg.joint == self.joint), JointGait(joint=self.joint))
         others = [jg for jg in gait.joints if jg.joint != self.joint]
         return dataclasses.replace(gait, joints=[*others, dataclasses.replace(own, bias_deg=bias - offset)])
+
+
+class PotentiometerGain(Effect):
+    """A sensor fault: one joint's potentiometer reads its angle times (1 + a gain error), a calibration's slope
+    missed as PotentiometerOffset's intercept can be. In the servo's loop the servo drives the reading to the
+    command, so the joint's amplitude and bias (Eq. 7) shrink by 1 + error; in the acquisition only the data
+    read the peaks past the joint limit. A replay follows the measured angles divided by 1 + error either way."""
+
+    sensor = True
+    differentiable = False  # it moves the gait command and the replay's reference, not the model's parameters
+    search = 0.1  # a diagnosis searches gain errors a calibration could have missed (10%)
+
+    def __init__(self, joint: int):
+        self.joint = joint
+        self.name = f"potentiometer_gain_j{joint}"
+        self.summary = f"joint {joint}'s potentiometer reads the angle times (1 + a gain error) (sensor fault)"
+        self.parameters = (EffectParameter(f"potentiometer_gain_j{joint}_error", -0.5, 0.5, probe=0.02),
+                           # 1: in the servo's loop (the robot moves off its command); 0: in the acquisition only
+                           EffectParameter(f"potentiometer_gain_j{joint}_in_servo_loop", 0.0, 1.0, fitted=False,
+                                           default=1.0))
+
+    def coordinate_space(self):
+        return [dataclasses.replace(self.main, lower=-self.search, upper=self.search)]
+
+    def _in_loop(self, values) -> bool:
+        return _in_servo_loop(self.parameters[1].key, values)
+
+    def configure_sensors(self, sensors, values):
+        self._in_loop(values)
+        sensors.angle_gains[self.joint - 1] *= 1.0 + values[self.main.key]
+
+    def gait(self, gait, values):
+        from .gait import serpenoid_parameters
+
+        error = values[self.main.key]
+        if error == 0.0 or not self._in_loop(values):
+            return gait
+        amplitude, _, _, bias = (math.degrees(v[self.joint - 1]) for v in serpenoid_parameters(gait))
+        own = next((jg for jg in gait.joints if jg.joint == self.joint), JointGait(joint=self.joint))
+        others = [jg for jg in gait.joints if jg.joint != self.joint]
+        moved = dataclasses.replace(own, amplitude_deg=amplitude / (1.0 + error), bias_deg=bias / (1.0 + error))
+        return dataclasses.replace(gait, joints=[*others, moved])
 
 
 class CameraDelay(Effect):
@@ -333,7 +389,8 @@ def register(effect: Effect) -> Effect:
 
 for _effect in (GroundSlope(), LateralFrictionAsymmetry(), LongitudinalFrictionAsymmetry(), HeadDrag(),
                 JointCoulombFriction(), StribeckFriction(), WheelToe(), ModulePayload(), ServoLag(),
-                *(PotentiometerOffset(j) for j in range(1, NUM_JOINTS + 1)), CameraDelay(), ImuFault()):
+                *(PotentiometerOffset(j) for j in range(1, NUM_JOINTS + 1)),
+                *(PotentiometerGain(j) for j in range(1, NUM_JOINTS + 1)), CameraDelay(), ImuFault()):
     register(_effect)
 
 
@@ -359,7 +416,8 @@ def candidate_names(names: Optional[List[str]] = None) -> List[str]:
 
 def potentiometer_faults(joints) -> List[str]:
     """The sensor-fault candidates of these joints' potentiometers (1-based joint numbers)."""
-    return [e.name for e in LIBRARY.values() if isinstance(e, PotentiometerOffset) and e.joint in set(joints)]
+    return [e.name for e in LIBRARY.values()
+            if isinstance(e, (PotentiometerOffset, PotentiometerGain)) and e.joint in set(joints)]
 
 
 def parameter_owner(key: str) -> Optional[Effect]:

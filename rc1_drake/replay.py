@@ -45,12 +45,14 @@ class JointReference:
     q_dot: np.ndarray  # (N, 13)
     noise_rad: float  # the potentiometers' noise the smoothing finds (smoothed_samples), pooled over the joints
 
-    def less(self, offsets_rad: np.ndarray) -> "JointReference":
-        """The reference of angles read `offsets_rad` (13,) high (effects.SensorModel): the smoothing is linear
-        and reproduces constants, and GCV's choice does not move with them, so it is this one shifted exactly."""
-        if not np.any(offsets_rad):
+    def read_back(self, sensors) -> "JointReference":
+        """The reference of the angles whose readings these are, read by potentiometers with `sensors`' faults
+        (effects.SensorModel: reading = gain * angle + offset): the smoothing is linear and reproduces constants,
+        and GCV's choice moves with neither an offset nor a scale, so it is this one mapped back exactly."""
+        if sensors.reads_angles:
             return self
-        return dataclasses.replace(self, q=self.q - offsets_rad)
+        return dataclasses.replace(self, q=(self.q - sensors.angle_offsets_rad) / sensors.angle_gains,
+                                   q_dot=self.q_dot / sensors.angle_gains)
 
     @functools.cached_property
     def trajectory(self):
@@ -166,10 +168,10 @@ class Replayer:
     def run(self, friction: Friction, effects=None, *, sensitivities=()) -> Run:
         """The replay; with `sensitivities` (names, compiled engine) also d state / d parameter (Run.sensitivity)."""
         scenario = replay_scenario(self.trial, friction, effects, self.numerics)
-        offsets = sensor_model(effects or {}).angle_offsets_rad
-        if not offsets.any():
+        sensors = sensor_model(effects or {})
+        if sensors.reads_angles:
             return self.session.simulate(scenario, initial=self.initial, sensitivities=sensitivities)
-        return self._run_following(self.reference.less(offsets), scenario, sensitivities)
+        return self._run_following(self.reference.read_back(sensors), scenario, sensitivities)
 
     def angle_noise_rad(self) -> float:
         """The potentiometers' noise as the smoothing sees it (JointReference.noise_rad)."""
@@ -189,7 +191,7 @@ class Replayer:
 
     def run_with_angles(self, friction: Friction, effects, measured_q: np.ndarray) -> Run:
         """A replay from `measured_q` in place of the trial's angles (same samples), this Diagram reused."""
-        reference = joint_reference(self.trial, measured_q).less(sensor_model(effects or {}).angle_offsets_rad)
+        reference = joint_reference(self.trial, measured_q).read_back(sensor_model(effects or {}))
         return self._run_following(reference, replay_scenario(self.trial, friction, effects, self.numerics))
 
     def _run_following(self, reference: JointReference, scenario: Scenario, sensitivities=()) -> Run:
@@ -231,6 +233,6 @@ def tracking_rms_deg(run: Run, trial: Trial) -> float:
     working = [j - 1 for j in trial.working_joints]
     t = trial.t - trial.t[0]
     inside = t <= run.t[-1]
-    offsets = sensor_model(run.scenario.effects).angle_offsets_rad
-    sim = np.column_stack([np.interp(t[inside], run.t, run.q[:, j]) + offsets[j] for j in working])
+    read = sensor_model(run.scenario.effects).potentiometers(run.q)
+    sim = np.column_stack([np.interp(t[inside], run.t, read[:, j]) for j in working])
     return float(np.degrees(np.sqrt(np.mean((sim - trial.q[inside][:, working]) ** 2))))

@@ -230,7 +230,7 @@ def _measure(run, scenario, trial_id, noise: Noise, rng, camera, period) -> Tria
     t = run.t[on_grid]
     n = len(t)
     sensors = sensor_model(scenario.effects)  # the sensor faults, before the noise
-    q = run.q[on_grid] + sensors.angle_offsets_rad + rng.normal(0, math.radians(noise.potentiometer_deg), (n, 13))
+    q = sensors.potentiometers(run.q[on_grid]) + rng.normal(0, math.radians(noise.potentiometer_deg), (n, 13))
     for f in scenario.failures:
         q[:, f.joint - 1] = np.nan
     rate = (sensors.imu(t, run.t, run.head_yaw_rate) + rng.normal(0, noise.imu_bias_rad_s)

@@ -1,5 +1,6 @@
-"""Sensor faults as candidates (effects.PotentiometerOffset): what the robot does and what its sensors read
-when one potentiometer is offset, and that a replay takes a known offset back out of the data exactly."""
+"""Sensor faults as candidates (effects.PotentiometerOffset, PotentiometerGain, CameraDelay, ImuFault): what the
+robot does and what its sensors read when one potentiometer is offset or mis-scaled, and that a replay takes a
+known fault back out of the data exactly."""
 
 import dataclasses
 import math
@@ -30,6 +31,45 @@ def test_the_smoothing_of_a_shifted_signal_is_the_smoothed_signal_shifted():
     np.testing.assert_allclose(shifted[0], plain[0] + math.radians(OFFSET_DEG), atol=1e-9)
     np.testing.assert_allclose(shifted[1], plain[1], atol=1e-8)
     assert shifted[2] == pytest.approx(plain[2], rel=1e-9)
+
+
+def test_the_smoothing_of_a_scaled_signal_is_the_smoothed_signal_scaled():
+    """A gain error's correction rests on this: GCV's score scales with the signal, so its weight does not move."""
+    trial = load_trial(f"{CAMPAIGN}/j7_1.json")
+    t, y = trial.t - trial.t[0], trial.q[:, 8]
+    plain, scaled = smoothed_samples(t, y), smoothed_samples(t, 1.08 * y)
+    np.testing.assert_allclose(scaled[0], 1.08 * plain[0], atol=1e-9)
+    np.testing.assert_allclose(scaled[1], 1.08 * plain[1], atol=1e-8)
+    assert scaled[2] == pytest.approx(1.08**2 * plain[2], rel=1e-6)
+
+
+def test_a_replay_takes_a_known_gain_error_back_out_of_the_data():
+    """Joint 9 read 8% large (and 2 deg high): replayed with both faults, the trial replays as read correctly."""
+    trial = first_seconds(load_trial(f"{CAMPAIGN}/j7_1.json"), 1.0)
+    trial = dataclasses.replace(trial, stop=dataclasses.replace(trial.stop, type="time", value=1.0))
+    misread = trial.q.copy()
+    misread[:, 8] = 1.08 * misread[:, 8] + math.radians(2.0)
+    faults = {"potentiometer_gain_j9_error": 0.08, "potentiometer_offset_j9_deg": 2.0}
+    plain = Replayer(trial).run(Friction())
+    faulty = dataclasses.replace(trial, q=misread)
+    corrected = Replayer(faulty).run(Friction(), faults)
+    np.testing.assert_allclose(corrected.state, plain.state, atol=1e-7)
+    # Tracking reads the replay through the faulty potentiometer: joint 9's misfit (its noise) is read 8% larger.
+    assert tracking_rms_deg(plain, trial) < tracking_rms_deg(corrected, faulty) < 1.08 * tracking_rms_deg(plain, trial)
+    assert tracking_rms_deg(Replayer(faulty).run(Friction()), faulty) > 2 * tracking_rms_deg(plain, trial)  # clipped at the limits
+
+
+def test_a_gain_error_in_the_servos_loop_shrinks_the_joints_wave():
+    """The servo drives the reading (1 + error) x angle to the command: the joint's amplitude and bias (Eq. 7) are
+    the command's over 1 + error; in the acquisition only, the command is the gait's."""
+    gait = dataclasses.replace(GAIT, bias_deg=4.0)
+    amplitude, _, _, bias = serpenoid_parameters(gait)
+    for in_loop, factor in ((1.0, 1.1), (0.0, 1.0)):
+        effects = {"potentiometer_gain_j9_error": 0.1, "potentiometer_gain_j9_in_servo_loop": in_loop}
+        moved = serpenoid_parameters(commanded_gait(gait, effects))
+        assert moved[0][8] * factor == pytest.approx(amplitude[8]) and moved[3][8] * factor == pytest.approx(bias[8])
+        np.testing.assert_allclose(np.delete(moved[0], 8), np.delete(amplitude, 8))
+        assert sensor_model(effects).angle_gains[8] == pytest.approx(1.1)
 
 
 @pytest.mark.parametrize("engine", ["compiled", "drake"])
@@ -75,38 +115,41 @@ def test_a_gait_driven_joint_settles_off_its_command_while_its_potentiometer_rea
     assert -OFFSET_DEG <= moved[8] < -0.7 * OFFSET_DEG  # the servo's own tracking error keeps part of it
 
 
+@pytest.mark.parametrize("key, value", [("potentiometer_offset_j9_deg", OFFSET_DEG), ("potentiometer_gain_j9_error", 0.2)])
 @pytest.mark.parametrize("truth_model", ["drake", "reference"])
-def test_a_synthesized_fault_is_in_the_readings_and_a_replay_with_it_fits_as_a_fault_free_one(tmp_path, truth_model):
+def test_a_synthesized_fault_is_in_the_readings_and_a_replay_with_it_fits_as_a_fault_free_one(tmp_path, truth_model,
+                                                                                             key, value):
     """Noise-free, the faulty potentiometer reads what the command asks (drake: about as well as a sound one;
-    reference: exactly); replayed with the offset, the trial ends as near its measured end as the same trial made
+    reference: exactly); replayed with the fault, the trial ends as near its measured end as the same trial made
     without the fault does, and clearly nearer than replayed without it."""
     silent = dataclasses.replace(Noise().scaled(0.0), camera_dropout=0.0)
     trials = {}
-    for offset in (0.0, OFFSET_DEG):
-        folder = tmp_path / f"offset_{offset:g}"
-        synthesize_campaign(folder, design=[Case([], 1, gait=GAIT)], effects={"potentiometer_offset_j9_deg": offset},
+    for fault in (0.0, value):
+        folder = tmp_path / f"fault_{fault:g}"
+        synthesize_campaign(folder, design=[Case([], 1, gait=GAIT)], effects={key: fault},
                             noise=silent, variation=Variation(0.0, 0.0, 0.0), truth_model=truth_model,
                             stop=Stop(line_x_m=None, revolutions=None, time_limit_s=3.0))
-        trials[offset] = load_campaign(folder).trials[0]
-    faulty = trials[OFFSET_DEG]
+        trials[fault] = load_campaign(folder).trials[0]
+    faulty = trials[value]
     command = np.array([serpenoid(t, faulty.gait)[0][8] for t in faulty.t - faulty.t[0]])
     reads = {k: math.degrees(np.sqrt(np.mean((trial.q[:, 8] - command) ** 2))) for k, trial in trials.items()}
-    assert reads[OFFSET_DEG] < (reads[0.0] + 0.3 if truth_model == "drake" else 1e-6)
+    assert reads[value] < (reads[0.0] + 0.3 if truth_model == "drake" else 1e-6)
 
-    def miss(trial, offset):
-        run = Replayer(trial).run(Friction(), {"potentiometer_offset_j9_deg": offset})
+    def miss(trial, fault):
+        run = Replayer(trial).run(Friction(), {key: fault})
         return float(np.hypot(*(run.head_xy[-1] - trial.final_head_xy)))
 
-    fault_free, corrected, uncorrected = miss(trials[0.0], 0.0), miss(faulty, OFFSET_DEG), miss(faulty, 0.0)
+    fault_free, corrected, uncorrected = miss(trials[0.0], 0.0), miss(faulty, value), miss(faulty, 0.0)
     if truth_model == "drake":  # the replay's own model: as near as without the fault
         assert corrected < fault_free + 0.003
     assert corrected < 0.02  # the replay's own miss on 3 s of data it did not make is ~2 cm at worst
     assert uncorrected > 3.0 * corrected
 
 
-def test_the_library_names_a_sensor_fault_per_joint_and_the_camera_and_imu_faults():
+def test_the_library_names_two_sensor_faults_per_joint_and_the_camera_and_imu_faults():
     faults = [e.name for e in LIBRARY.values() if e.sensor]
-    assert faults == [f"potentiometer_offset_j{j}" for j in range(1, 14)] + ["camera_delay", "imu_fault"]
+    assert faults == [f"potentiometer_{kind}_j{j}" for kind in ("offset", "gain") for j in range(1, 14)] + [
+        "camera_delay", "imu_fault"]
     assert all(LIBRARY[n].seen_in_replay and not LIBRARY[n].differentiable for n in faults)
 
 
