@@ -255,42 +255,53 @@ class ServoLag(Effect):
         return dataclasses.replace(gait, joints=joints)
 
 
-def _in_servo_loop(key: str, values) -> bool:
-    """A potentiometer fault's setting `key`: 1, in the servo's loop; 0, in the data acquisition only."""
-    setting = values[key]
-    if setting not in (0.0, 1.0):
-        raise Rc1Error(f"effects.{key}: must be 1 (the servo's loop) or 0 (the acquisition only), got {setting}")
-    return setting == 1.0
-
-
-class PotentiometerOffset(Effect):
-    """A sensor fault: one joint's potentiometer reads its angle plus a constant offset. RC1 records the servos'
-    own potentiometers (paper section 2), so the fault sits either in the servo's loop (a shifted potentiometer:
-    the servo drives the reading to the command, the joint settles at the command minus the offset, Eq. 7's
-    bias B_i moved by -offset, and the data show the command) or only in the data acquisition (its calibration:
-    the joint follows the command and the data read it plus the offset, past the joint limit at the wave's
-    peaks). A replay follows the measured angles minus the offset either way. One effect per joint, so that a
+class PotentiometerFault(Effect):
+    """A sensor fault of one joint's potentiometer (subclasses: how it misreads). RC1 records the servos' own
+    potentiometers (paper section 2), so the fault sits either in the servo's loop (the servo drives the faulty
+    reading to the command, so the joint moves off its command and the data show the command) or only in the data
+    acquisition (its calibration: the joint follows the command and the data misread it, past the joint limit at
+    the wave's peaks). A replay reads the measured angles back either way. One effect per joint, so that a
     diagnosis names the joint."""
 
     sensor = True
     differentiable = False  # it moves the gait command and the replay's reference, not the model's parameters
+    kind = ""  # the effect's name is potentiometer_<kind>_j<joint>
+    search = 0.0  # a diagnosis searches +-this much: what a calibration could have missed
 
-    def __init__(self, joint: int):
+    def __init__(self, joint: int, main: EffectParameter, summary: str):
         self.joint = joint
-        self.name = f"potentiometer_offset_j{joint}"
-        self.summary = f"joint {joint}'s potentiometer reads the angle plus a constant offset (sensor fault)"
-        self.parameters = (EffectParameter(f"potentiometer_offset_j{joint}_deg", -10.0, 10.0, probe=1.0),
-                           # 1: in the servo's loop (the robot moves off its command); 0: in the acquisition only
-                           EffectParameter(f"potentiometer_offset_j{joint}_in_servo_loop", 0.0, 1.0, fitted=False,
-                                           default=1.0))
-
-    search_deg = 5.0  # a diagnosis searches offsets a calibration could have missed (a few degrees)
+        self.name = f"potentiometer_{self.kind}_j{joint}"
+        self.summary = summary
+        # 1: in the servo's loop (the robot moves off its command); 0: in the acquisition only
+        self.parameters = (main, EffectParameter(f"{self.name}_in_servo_loop", 0.0, 1.0, fitted=False, default=1.0))
 
     def coordinate_space(self):
-        return [dataclasses.replace(self.main, lower=-self.search_deg, upper=self.search_deg)]
+        return [dataclasses.replace(self.main, lower=-self.search, upper=self.search)]
 
     def _in_loop(self, values) -> bool:
-        return _in_servo_loop(self.parameters[1].key, values)
+        key = self.parameters[1].key
+        if values[key] not in (0.0, 1.0):
+            raise Rc1Error(f"effects.{key}: must be 1 (the servo's loop) or 0 (the acquisition only), "
+                           f"got {values[key]}")
+        return values[key] == 1.0
+
+    def _with_joint(self, gait: Gait, **fields) -> Gait:
+        """`gait` with this joint's own serpenoid terms replaced by `fields` (config.JointGait's)."""
+        own = next((jg for jg in gait.joints if jg.joint == self.joint), JointGait(joint=self.joint))
+        others = [jg for jg in gait.joints if jg.joint != self.joint]
+        return dataclasses.replace(gait, joints=[*others, dataclasses.replace(own, **fields)])
+
+
+class PotentiometerOffset(PotentiometerFault):
+    """The potentiometer reads the angle plus a constant offset. In the servo's loop the joint settles at the
+    command minus the offset (Eq. 7's bias B_i moved by -offset); a replay follows the readings minus the offset."""
+
+    kind = "offset"
+    search = 5.0  # deg
+
+    def __init__(self, joint: int):
+        super().__init__(joint, EffectParameter(f"potentiometer_offset_j{joint}_deg", -10.0, 10.0, probe=1.0),
+                         f"joint {joint}'s potentiometer reads the angle plus a constant offset (sensor fault)")
 
     def configure_sensors(self, sensors, values):
         self._in_loop(values)
@@ -302,36 +313,20 @@ class PotentiometerOffset(Effect):
         offset = values[self.main.key]
         if offset == 0.0 or not self._in_loop(values):
             return gait
-        bias = math.degrees(serpenoid_parameters(gait)[3][self.joint - 1])
-        own = next((jg for jg in gait.joints if jg.joint == self.joint), JointGait(joint=self.joint))
-        others = [jg for jg in gait.joints if jg.joint != self.joint]
-        return dataclasses.replace(gait, joints=[*others, dataclasses.replace(own, bias_deg=bias - offset)])
+        return self._with_joint(gait, bias_deg=math.degrees(serpenoid_parameters(gait)[3][self.joint - 1]) - offset)
 
 
-class PotentiometerGain(Effect):
-    """A sensor fault: one joint's potentiometer reads its angle times (1 + a gain error), a calibration's slope
-    missed as PotentiometerOffset's intercept can be. In the servo's loop the servo drives the reading to the
-    command, so the joint's amplitude and bias (Eq. 7) shrink by 1 + error; in the acquisition only the data
-    read the peaks past the joint limit. A replay follows the measured angles divided by 1 + error either way."""
+class PotentiometerGain(PotentiometerFault):
+    """The potentiometer reads the angle times (1 + a gain error), a calibration's slope missed as
+    PotentiometerOffset's intercept can be. In the servo's loop the joint's amplitude and bias (Eq. 7) shrink by
+    1 + error; a replay follows the readings divided by 1 + error."""
 
-    sensor = True
-    differentiable = False  # it moves the gait command and the replay's reference, not the model's parameters
-    search = 0.1  # a diagnosis searches gain errors a calibration could have missed (10%)
+    kind = "gain"
+    search = 0.1  # 10%
 
     def __init__(self, joint: int):
-        self.joint = joint
-        self.name = f"potentiometer_gain_j{joint}"
-        self.summary = f"joint {joint}'s potentiometer reads the angle times (1 + a gain error) (sensor fault)"
-        self.parameters = (EffectParameter(f"potentiometer_gain_j{joint}_error", -0.5, 0.5, probe=0.02),
-                           # 1: in the servo's loop (the robot moves off its command); 0: in the acquisition only
-                           EffectParameter(f"potentiometer_gain_j{joint}_in_servo_loop", 0.0, 1.0, fitted=False,
-                                           default=1.0))
-
-    def coordinate_space(self):
-        return [dataclasses.replace(self.main, lower=-self.search, upper=self.search)]
-
-    def _in_loop(self, values) -> bool:
-        return _in_servo_loop(self.parameters[1].key, values)
+        super().__init__(joint, EffectParameter(f"potentiometer_gain_j{joint}_error", -0.5, 0.5, probe=0.02),
+                         f"joint {joint}'s potentiometer reads the angle times (1 + a gain error) (sensor fault)")
 
     def configure_sensors(self, sensors, values):
         self._in_loop(values)
@@ -344,10 +339,7 @@ class PotentiometerGain(Effect):
         if error == 0.0 or not self._in_loop(values):
             return gait
         amplitude, _, _, bias = (math.degrees(v[self.joint - 1]) for v in serpenoid_parameters(gait))
-        own = next((jg for jg in gait.joints if jg.joint == self.joint), JointGait(joint=self.joint))
-        others = [jg for jg in gait.joints if jg.joint != self.joint]
-        moved = dataclasses.replace(own, amplitude_deg=amplitude / (1.0 + error), bias_deg=bias / (1.0 + error))
-        return dataclasses.replace(gait, joints=[*others, moved])
+        return self._with_joint(gait, amplitude_deg=amplitude / (1.0 + error), bias_deg=bias / (1.0 + error))
 
 
 class CameraDelay(Effect):
@@ -417,7 +409,7 @@ def candidate_names(names: Optional[List[str]] = None) -> List[str]:
 def potentiometer_faults(joints) -> List[str]:
     """The sensor-fault candidates of these joints' potentiometers (1-based joint numbers)."""
     return [e.name for e in LIBRARY.values()
-            if isinstance(e, (PotentiometerOffset, PotentiometerGain)) and e.joint in set(joints)]
+            if isinstance(e, PotentiometerFault) and e.joint in set(joints)]
 
 
 def parameter_owner(key: str) -> Optional[Effect]:
