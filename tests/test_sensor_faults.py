@@ -116,7 +116,8 @@ def test_a_gait_driven_joint_settles_off_its_command_while_its_potentiometer_rea
     assert -OFFSET_DEG <= moved[8] < -0.7 * OFFSET_DEG  # the servo's own tracking error keeps part of it
 
 
-@pytest.mark.parametrize("key, value", [("potentiometer_offset_j9_deg", OFFSET_DEG), ("potentiometer_gain_j9_error", 0.2)])
+@pytest.mark.parametrize("key, value", [("potentiometer_offset_j9_deg", OFFSET_DEG),
+                                        ("potentiometer_gain_j9_error", 0.2)])
 @pytest.mark.parametrize("truth_model", ["drake", "reference"])
 def test_a_synthesized_fault_is_in_the_readings_and_a_replay_with_it_fits_as_a_fault_free_one(tmp_path, truth_model,
                                                                                              key, value):
@@ -204,7 +205,8 @@ def test_a_late_camera_and_a_biased_imu_are_in_the_readings_and_the_replay_predi
     from rc1_drake.start import START_FIT_S, start_residual
 
     def start_rms(trial, effects):
-        return float(np.sqrt(np.mean(start_residual(trial, Replayer(trial).run(Friction(), effects), START_FIT_S) ** 2)))
+        rows = start_residual(trial, Replayer(trial).run(Friction(), effects), START_FIT_S)
+        return float(np.sqrt(np.mean(rows**2)))
 
     sound, predicted, ignored = start_rms(trials["sound"], {}), start_rms(trials["faulty"], faults), \
         start_rms(trials["faulty"], {})
