@@ -28,8 +28,8 @@ import numpy as np
 
 from rc1_drake.config import FRICTION_NAMES, Friction, Gait, Stop
 from rc1_drake.executor import make_executor
-from rc1_drake.identify import (INPUT_NOISE_SAMPLES, PAPER_MANUAL, CampaignResiduals, Eq6Objective, _replay_residual,
-                                avs, fit_program, screen, uncertainty)
+from rc1_drake.identify import INPUT_NOISE_SAMPLES, CampaignResiduals, Eq6Objective, _replay_residual, avs, fit_program, screen, uncertainty
+from rc1_drake.sysid.parameters import PAPER_MANUAL
 from rc1_drake.measurements import load_campaign
 from rc1_drake.synthesize import IDENTIFICATION_DESIGN, Case, synthesize_campaign
 

@@ -11,8 +11,8 @@ import tempfile
 import time
 from pathlib import Path
 
-from .config import (DEFAULT_SCENARIOS, FAILURE_MODES, FRICTION_NAMES, START_MODES, TRUTH_MODELS, Failure, Friction,
-                     ModelFile, Rc1Error, Scenario, Stop, load_model_file, load_scenario, model_to_yaml, validate)
+from .config import FAILURE_MODES, FRICTION_NAMES, START_MODES, TRUTH_MODELS, Failure, Friction, Rc1Error, Scenario, Stop
+from .scenarios import DEFAULT_SCENARIOS, ModelFile, load_model_file, load_scenario, model_to_yaml, validate
 from .diagnose import INPUT_NOISE_SAMPLES as DIAGNOSE_NOISE_SAMPLES
 from .engine import ENGINES, make_session, use_engine
 from .identify import INPUT_NOISE_SAMPLES
@@ -483,9 +483,9 @@ def cmd_sweep(args) -> int:
 def cmd_identify(args) -> int:
     import matplotlib.pyplot as plt
 
-    from .identify import (DEFAULT_PARAMETERS, PAPER_MANUAL, avs_figure, friction_to_yaml, held_out_errors,
-                           identify_avs, identify_equation_error, identify_program, seeded_start,
-                           split_trials)
+    from .identify import (avs_figure, friction_to_yaml, held_out_errors, identify_avs, identify_equation_error,
+                           identify_program, seeded_start, split_trials)
+    from .sysid.parameters import DEFAULT_PARAMETERS, PAPER_MANUAL
     from .replay import fit_starts
     from .start import START_NAMES
 

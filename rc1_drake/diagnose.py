@@ -5,7 +5,7 @@ fitted to, add it, and repeat until nothing more is found; the waterfall shows w
 The method, linearized where that is safe and checked by simulation where it decides:
 
 1. Linearize. At the current model, the stacked standardized residuals r0 of every trial's replay
-   (identify.trial_residual: final position, camera path or yaw rate) and their Jacobian by forward
+   (sysid.residual.trial_residual: final position, camera path or yaw rate) and their Jacobian by forward
    differences: one column per friction coefficient, one per candidate coordinate at its probe step
    (a small, clearly visible strength: EffectParameter.probe). What the replay itself gets wrong is
    taken once, by a parametric bootstrap on each trial's noise-free twin (replay_error): its mean is
@@ -47,12 +47,16 @@ from typing import Callable, Dict, List, Optional
 
 import numpy as np
 
-from . import identify as idf
-from .config import FRICTION_NAMES, START_MODES, Z95, Friction
+from .config import FRICTION_NAMES, RESIDUAL_SIGMAS, START_MODES, Z95, Friction
 from .effects import LIBRARY, active, candidate_names, effect_values, potentiometer_faults
 from .engine import default_engine
 from .replay import with_start_guess
 from .start import START_FIT_S, START_NAMES, start_residual
+from .sysid.evaluate import replay, replayer
+from .sysid.optimize import bounded_step
+from .sysid.parameters import DEFAULT_PARAMETERS, difference_step
+from .sysid.residual import residual_channels, trial_residual
+from .sysid.stats import channel_variances
 
 P_ACCEPT = 2.7e-3  # Wald test of a candidate's parameters against 0: |z| > 3 for one parameter
 MIN_HELD_OUT_REDUCTION = 0.10  # a candidate "helps" when the simulated held-out error falls by this fraction
@@ -79,7 +83,7 @@ INPUT_NOISE_SAMPLES = 6  # bootstrap replays per trial for the replay's bias and
 START = "start"
 START_STEPS = (0.02, 0.02, 0.1)
 START_BOUNDS = (1.0, 1.0, 5.0)
-FINAL_SIGMA_M = idf.RESIDUAL_SIGMAS["final_m"]
+FINAL_SIGMA_M = RESIDUAL_SIGMAS["final_m"]
 
 
 @dataclasses.dataclass
@@ -97,9 +101,9 @@ class Coordinate:
 
 def friction_coordinates(friction: Friction, held=()) -> List[Coordinate]:
     out = []
-    for p in [p for p in idf.DEFAULT_PARAMETERS if p.name not in held]:
+    for p in [p for p in DEFAULT_PARAMETERS if p.name not in held]:
         value = getattr(friction, p.name)
-        out.append(Coordinate(p.name, "friction", value, p.lower, p.upper, idf.difference_step(p, value)))
+        out.append(Coordinate(p.name, "friction", value, p.lower, p.upper, difference_step(p, value)))
     return out
 
 
@@ -155,11 +159,11 @@ def _evaluate(trial, friction, effects) -> tuple:
     standardized residuals of its first START_FIT_S at the full sampling rate: start.start_residual)."""
     from .compare import fit_percent, simulator_error
 
-    run = idf._replay(trial, friction, effects)
+    run = replay(trial, friction, effects)
     t = trial.t - trial.t[0]
     inside = t <= run.t[-1] + 1e-9
     fit = fit_percent(trial.head_yaw_rate[inside], np.interp(t[inside], run.t, run.head_yaw_rate))
-    return (idf.trial_residual(trial, run), simulator_error(run.head_xy[-1], trial.final_head_xy,
+    return (trial_residual(trial, run), simulator_error(run.head_xy[-1], trial.final_head_xy,
                                                             trial.initial_head_pose[:2]), fit, float(run.t[-1]),
             start_residual(trial, run, START_FIT_S))
 
@@ -197,7 +201,7 @@ def bootstrap_twin(trial, friction, effects, until: float) -> Optional[tuple]:
     if trial.camera is not None:
         camera = twin.camera.copy()
         camera[np.isnan(trial.camera[:, 0])] = np.nan
-    return dataclasses.replace(twin, camera=camera), idf._replayer(trial).angle_noise_rad()
+    return dataclasses.replace(twin, camera=camera), replayer(trial).angle_noise_rad()
 
 
 _TWIN_REPLAYERS: dict = {}  # per worker process: a twin (its id and angles) -> its Replayer, the last few only
@@ -219,7 +223,7 @@ def bootstrap_draw(twin, sigma_rad: float, friction, effects, until: float, seed
         replayer.angle_noise(rng, sigma_rad)
     angles = twin.q + replayer.angle_noise(rng, sigma_rad)
     run = replayer.run_with_angles(friction, effects, angles)
-    return idf.trial_residual(twin, run, until=until), start_residual(twin, run, START_FIT_S)
+    return trial_residual(twin, run, until=until), start_residual(twin, run, START_FIT_S)
 
 
 def _draws_mean_and_covariance(draws) -> Optional[tuple]:
@@ -235,7 +239,7 @@ def _draws_mean_and_covariance(draws) -> Optional[tuple]:
 def _replay_and_score(trial, friction, effects) -> tuple:
     from .compare import score_trial
 
-    run = idf._replay(trial, friction, effects)
+    run = replay(trial, friction, effects)
     return score_trial(trial, run), run
 
 
@@ -286,7 +290,7 @@ class Linearization:
         x = np.vstack([w_k * np.column_stack([self.columns[n][k] for n in names]) if names else
                        np.zeros((len(self.r0[k]), 0)) for k, w_k in zip(trials, w, strict=True)])
         r = np.concatenate([w_k * self.r0[k] for k, w_k in zip(trials, w, strict=True)])
-        channels = np.concatenate([idf.residual_channels(self.r0[k]) for k in trials])
+        channels = np.concatenate([residual_channels(self.r0[k]) for k in trials])
         return x, r, channels, [len(self.r0[k]) for k in trials]
 
     def corrected(self, k: int, residual: np.ndarray) -> np.ndarray:
@@ -334,7 +338,7 @@ def bounded_least_squares(x, r, lower, upper) -> np.ndarray:
     if not seen.any():
         return d
     scaled = x[:, seen] / norm[seen]
-    d[seen] = idf._bounded_step(scaled, r, 1e-10, lower[seen] * norm[seen], upper[seen] * norm[seen]) / norm[seen]
+    d[seen] = bounded_step(scaled, r, 1e-10, lower[seen] * norm[seen], upper[seen] * norm[seen]) / norm[seen]
     return d
 
 
@@ -429,7 +433,7 @@ def fit(lin: Linearization, names: List[str]) -> Fit:
     x_all, r_all, channels, counts = lin.rows(names, everything, weighted=True)
     d = _solve(lin, coords, everything, lower, upper)
     e = r_all + x_all @ d
-    variance = idf._channel_variances(e, channels, len(names))
+    variance = channel_variances(e, channels, len(names))
     physics = [i for i, c in enumerate(coords) if c.start_of is None]
     x, _, _, _, carries = _profiled_rows(lin, coords, everything)
     inv = np.linalg.pinv(x.T @ x) if physics else np.zeros((0, 0))
@@ -870,7 +874,7 @@ def diagnose(campaign, *, friction: Optional[Friction] = None, effects=None, can
     if start_rates not in START_MODES:
         raise ValueError(f"start_rates must be one of {START_MODES}, got {start_rates!r}")
     friction = friction or Friction()
-    chosen = idf.choose_trials(campaign, trials)
+    chosen = campaign.chosen(trials)
     effects = dict(effects or {})
     names = candidate_names(candidates)
     if candidates is None:  # readings past a joint's limit point at its potentiometer (measurements.limit_warnings)
@@ -991,7 +995,7 @@ def diagnose(campaign, *, friction: Optional[Friction] = None, effects=None, can
         friction_out, effects_out = lin.friction, lin.effects
         final_fit = fit(lin, model_names)
         report, where = _where_it_fails(campaign, lin.trials, friction_out, effects_out, evaluator)
-        simulated = [lin.corrected(k, idf.trial_residual(t, report.runs[t.trial_id])) for k, t in enumerate(lin.trials)]
+        simulated = [lin.corrected(k, trial_residual(t, report.runs[t.trial_id])) for k, t in enumerate(lin.trials)]
         final_coordinates = {n: [float(lin.coordinate(n).value), float(se)] for n, se in zip(
             final_fit.names, final_fit.standard_errors, strict=True)}
         # the final model's replays, not the linear guess

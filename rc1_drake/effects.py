@@ -7,7 +7,7 @@ is 0 (or a setting's default), and every effect at 0 is the paper's model exactl
 Each effect is one small class: its parameters (bounds, and whether a fit estimates them or the user
 sets them) and how it changes the model, by editing a ModelSetup (gravity, payload, friction-law
 terms, wheel toe, explicit forces), for the commanded gait, the Gait, and for a sensor fault, the SensorModel.
-`register()` adds a user's own; the README's effects section shows one.
+`register()` adds a user's own; docs/effects.md shows one.
 
 Sign conventions are the README's: world x toward the line, y left, z up; a wheel's +x rolls forward
 (toward the head), +y is its left.
@@ -57,7 +57,7 @@ class ModelSetup:
 class SensorModel:
     """What the sensors report of a motion, as the sensor faults make it (all at 0: the paper's perfect sensors).
     Synthesis measures a truth through it; a replay reads the potentiometers back through it and predicts the
-    camera and the IMU through it (identify.trial_residual, compare.score_trial)."""
+    camera and the IMU through it (sysid.residual.trial_residual, compare.score_trial)."""
 
     angle_offsets_rad: np.ndarray  # (13,) the potentiometers read angle_gains * angle + angle_offsets_rad
     angle_gains: np.ndarray = dataclasses.field(default_factory=lambda: np.ones(NUM_JOINTS))
@@ -139,7 +139,7 @@ class GroundSlope(Effect):
     # direction has no effect at all, and the residuals are smooth in the components. It searches only
     # floors a lab could have unnoticed (a 5 deg floor is a 1:11 ramp, steeper than a wheelchair ramp;
     # a spirit level sees 0.1 deg): free to 20 deg, a tilt absorbed what a lateral friction asymmetry does
-    # to a turning gait (README). A known ramp goes into the model file; the search then spans it.
+    # to a turning gait (docs/diagnosis.md). A known ramp goes into the model file; the search then spans it.
     search_deg = 5.0
 
     def coordinates(self, values):

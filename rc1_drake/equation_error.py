@@ -52,6 +52,7 @@ import numpy as np
 
 from .config import NUM_JOINTS, Z95, Friction, Rc1Error
 from .smoothing import smoothing_spline
+from .sysid.parameters import DEFAULT_PARAMETERS
 
 # The four wheel coefficients the base rows see, in this column order.
 WHEEL_NAMES = ("mu_lat", "mu_long", "c_lat", "c_long")
@@ -156,7 +157,7 @@ class InverseDynamics:
         YAW_ROW_M), each wheel's slip u_long, u_lat, and the base-row direction g_long, g_lat along
         which that wheel's force acts (so that an unknown force can be projected out)."""
         from .friction import smooth_sign
-        from .kinematics import _wheel_kinematics
+        from .kinematics import wheel_kinematics_kernel
 
         jp, jc, module, offset, _ = self.rc1.geometry.arrays
         n, w = len(samples.t), len(self.normal)
@@ -168,7 +169,7 @@ class InverseDynamics:
             self.plant.SetPositionsAndVelocities(self.context, x)
             M = self.plant.CalcMassMatrix(self.context)
             out["b"][k] = scale * (M[:3] @ samples.a[k] + self.plant.CalcBiasTerm(self.context)[:3])
-            _, direction, jacobian = _wheel_kinematics(x, jp, jc, module, offset, self.toe)
+            _, direction, jacobian = wheel_kinematics_kernel(x, jp, jc, module, offset, self.toe)
             local = np.conj(direction)[:, None] * jacobian
             g_long, g_lat = local.real[:, :3] * scale, local.imag[:, :3] * scale
             u_long, u_lat = local.real @ samples.v[k], local.imag @ samples.v[k]
@@ -300,7 +301,6 @@ def fit_equation_error(trials, *, start: Friction, parameters=None, sgn_smoothin
     working-joint trials among `trials` (module docstring). `noise` (a synthesize.Noise; default: the
     sensors of data/README.md): its camera and potentiometer deviations are added once more to measure
     the slip noise (for the gate) and the noise bias (SIMEX)."""
-    from .identify import DEFAULT_PARAMETERS
     from .synthesize import Noise
 
     noise = noise or Noise()

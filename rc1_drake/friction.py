@@ -35,7 +35,7 @@ from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import BasicVector, LeafSystem, ValueProducer
 
 from .config import GRAVITY_M_S2, NUM_JOINTS, Friction
-from .kinematics import ChainGeometry, _wheel_kinematics, jit
+from .kinematics import ChainGeometry, wheel_kinematics_kernel, jit
 from .model import set_payload
 
 
@@ -371,7 +371,7 @@ def friction_problem(x, other_force, mass_matrix, dt, params, servo_command, ser
     the free momentum, the friction-law terms and the servos' backward-Euler offset, rate and power."""
     nw = wheel_module.shape[0]
     toe = wheel_toe * np.exp(1j * params[PER_WHEEL + nw : PER_WHEEL + 2 * nw])
-    _, direction, jacobian = _wheel_kinematics(x, joint_in_parent, joint_in_child, wheel_module, wheel_offset, toe)
+    _, direction, jacobian = wheel_kinematics_kernel(x, joint_in_parent, joint_in_child, wheel_module, wheel_offset, toe)
     local = np.conj(direction).reshape(-1, 1) * jacobian  # rows: v_long + i v_lat of each wheel
     jac_long = np.ascontiguousarray(local.real)
     jac_lat = np.ascontiguousarray(local.imag)

@@ -14,103 +14,26 @@ from typing import Dict, List, Optional
 
 import numpy as np
 
-from .config import FRICTION_NAMES, RESIDUAL_SIGMAS, Z95, Friction, Rc1Error
-from .effects import sensor_model
+from .config import FRICTION_NAMES, Z95, Friction, Rc1Error
 from .engine import default_engine
 from .engine.session import sensitivity_parameters
 from .executor import make_executor
-
-# The paper's manually tuned starting point (section 4).
-PAPER_MANUAL = Friction(c_joint=0.045, mu_lat=1.5, mu_long=0.1, c_lat=2.0, c_long=0.1)
-
-
-@dataclasses.dataclass
-class Parameter:
-    name: str  # a Friction field (fitted in log scale), or an effect parameter key (effects.py; linear scale)
-    lower: float
-    upper: float
-    frozen: bool = False
-
-    @property
-    def is_friction(self) -> bool:
-        return self.name in FRICTION_NAMES
-
-
-def effect_parameters(name: str) -> List[Parameter]:
-    """The fitted parameters of effect `name`, with its bounds."""
-    from .effects import LIBRARY
-
-    return [Parameter(p.key, p.lower, p.upper) for p in LIBRARY[name].fitted()]
-
-
-def parameter_value(name: str, friction: Friction, effects=None) -> float:
-    """A friction coefficient's, or an effect parameter's value (its default where `effects` leaves it out)."""
-    if name in FRICTION_NAMES:
-        return getattr(friction, name)
-    from .effects import parameter
-
-    return float((effects or {}).get(name, parameter(name).default))
-
-
-def with_values(friction: Friction, effects, values: Dict[str, float]) -> tuple:
-    """(friction, effects) with `values` (friction coefficients and effect parameters by name) set."""
-    return (dataclasses.replace(friction, **{k: v for k, v in values.items() if k in FRICTION_NAMES}),
-            {**(effects or {}), **{k: v for k, v in values.items() if k not in FRICTION_NAMES}})
+from .sysid.evaluate import map_trials, replay, replayer
+from .sysid.optimize import bounded_step
+from .sysid.parameters import (DEFAULT_PARAMETERS, PAPER_MANUAL, Parameter, difference_step, parameter_value,
+                               with_fixed, with_values)
+from .sysid.residual import residual_channels, residual_jacobian, trial_residual
+from .sysid.stats import channel_variances
 
 
 # Resampled replays per trial for the input-noise part of every interval (uncertainty()).
 INPUT_NOISE_SAMPLES = 8
 
-DEFAULT_PARAMETERS = [
-    Parameter("c_joint", 0.0, 0.5),
-    Parameter("mu_lat", 0.05, 5.0),
-    Parameter("mu_long", 0.0, 1.0),
-    Parameter("c_lat", 0.0, 20.0),
-    Parameter("c_long", 0.0, 2.0),
-]
-
-
-_REPLAYERS: dict = {}  # per worker process: trial source -> Replayer (its Diagram and reference)
-
-
-def _replayer(trial):
-    """This process's Replayer of `trial` (built once: its Diagram, Simulator and reference)."""
-    from .replay import Replayer
-
-    key = (default_engine(), str(trial.source or trial.trial_id))
-    if key not in _REPLAYERS:
-        _REPLAYERS[key] = Replayer(trial)
-    replayer = _REPLAYERS[key]
-    if not _same(replayer.trial.initial_head_rates, trial.initial_head_rates):  # a fit moves a trial's start
-        replayer.use_start(trial.initial_head_rates)
-    return replayer
-
-
-def _same(a, b) -> bool:
-    return (a is None and b is None) or (a is not None and b is not None and np.array_equal(a, b))
-
-
-def _replay(trial, friction: Friction, effects=None):
-    """Replay `trial`, reusing this process's Replayer for it."""
-    return _replayer(trial).run(friction, effects)
-
-
-def _map_trials(function, trials, friction, effects, executor) -> list:
-    """function(trial, friction, effects) for every trial, in this process or on the executor."""
-    if executor is None:
-        return [function(t, friction, effects) for t in trials]
-    return [f.result() for f in [executor.submit(function, t, friction, effects) for t in trials]]
-
-
-def _with_fixed(fixed, effects) -> dict:
-    """The model's fixed effects with `effects` (the ones being varied) set over them."""
-    return {**(fixed or {}), **(effects or {})}
-
 
 def _replay_error(trial, friction: Friction, effects=None) -> float:
     from .compare import simulator_error
 
-    run = _replay(trial, friction, effects)
+    run = replay(trial, friction, effects)
     return simulator_error(run.head_xy[-1], trial.final_head_xy, trial.initial_head_pose[:2])
 
 
@@ -125,12 +48,12 @@ class Eq6Objective:
         self._cache: Dict[tuple, float] = {}
 
     def per_trial(self, friction: Friction, effects=None) -> List[float]:
-        errors = _map_trials(_replay_error, self.trials, friction, _with_fixed(self.effects, effects), self.executor)
+        errors = map_trials(_replay_error, self.trials, friction, with_fixed(self.effects, effects), self.executor)
         self.simulations += len(self.trials)
         return errors
 
     def __call__(self, friction: Friction, effects=None) -> float:
-        key = dataclasses.astuple(friction) + tuple(sorted(_with_fixed(self.effects, effects).items()))
+        key = dataclasses.astuple(friction) + tuple(sorted(with_fixed(self.effects, effects).items()))
         if key not in self._cache:
             self._cache[key] = float(np.mean(self.per_trial(friction, effects)))
         return self._cache[key]
@@ -220,19 +143,11 @@ def avs(objective, *, start: Friction = PAPER_MANUAL, iterations: int = 10,
                      simulations=getattr(objective, "simulations", 0))
 
 
-def choose_trials(campaign, trial_ids=None) -> list:
-    """The campaign's trials with these ids (all when None); Rc1Error for an id it does not have."""
-    missing = sorted(set(trial_ids or []) - {t.trial_id for t in campaign.trials})
-    if missing:
-        raise Rc1Error(f"{campaign.path}: no trial '{missing[0]}' in the campaign")
-    return [t for t in campaign.trials if trial_ids is None or t.trial_id in trial_ids]
-
-
 def identify_avs(campaign, *, trials=None, iterations=10, workers=None, scheduler=None, start=PAPER_MANUAL,
                  parameters=None, progress=None, effects=None, input_noise_samples=INPUT_NOISE_SAMPLES):
     """AVS on the chosen trials (the model with `effects`, held fixed), then the uncertainty of its
     result (uncertainty(), with `input_noise_samples`): (AvsResult, Uncertainty)."""
-    chosen = choose_trials(campaign, trials)
+    chosen = campaign.chosen(trials)
     with make_executor(workers=workers or min(os.cpu_count() or 1, len(chosen)), scheduler=scheduler) as executor:
         objective = Eq6Objective(chosen, executor=executor, effects=effects)
         result = avs(objective, start=start, iterations=iterations, parameters=parameters, progress=progress)
@@ -242,14 +157,14 @@ def identify_avs(campaign, *, trials=None, iterations=10, workers=None, schedule
 
 
 def friction_to_yaml(friction: Friction, effects=None) -> str:
-    from .config import model_to_yaml
+    from .scenarios import model_to_yaml
 
     return model_to_yaml(friction, effects, comment="Identified by rc1 identify")
 
 
 def load_friction_file(path) -> Friction:
-    """The friction of a model file (config.load_model_file); Rc1Error names the problem."""
-    from .config import load_model_file
+    """The friction of a model file (scenarios.load_model_file); Rc1Error names the problem."""
+    from .scenarios import load_model_file
 
     return load_model_file(path).friction
 
@@ -275,70 +190,16 @@ def avs_figure(result: AvsResult):
     return fig
 
 
-# Residual weights: roughly the measurement noise of each channel (data/README.md), so the residual
-# vector is standardized and its Jacobian gives a Fisher information.
-RESIDUAL_PERIOD_S = 0.1
-FINAL_CHANNEL, PATH_CHANNEL = 0, 1  # the final position (by hand); the camera path or yaw rate over time
-
-
-def trial_residual(trial, run, until=None) -> np.ndarray:
-    """Standardized residuals of one replay: the final head position and, every RESIDUAL_PERIOD_S, the
-    head's x and y where the camera saw it, or its yaw rate when the trial has no camera.
-
-    Why not both: the replayed yaw rate differs from a noise-free truth's by ~0.05 rad/s RMS whatever
-    the friction (the smoothed potentiometer noise shakes the head), so with a camera that channel adds
-    systematic error that biases the fit more than it informs it; the camera's positions match to ~2 mm at the true coefficients (measured on a 3 s
-    joint-7 trial).
-
-    `until`: the residuals of the run up to that time (s from the start; the final position there), in
-    place of its end — so that a replay of the trial's twin lines up with the trial's own replay."""
-    t = trial.t - trial.t[0]
-    step = max(1, int(round(RESIDUAL_PERIOD_S / (t[1] - t[0]))))
-    keep = np.zeros(len(t), dtype=bool)
-    keep[::step] = True
-    end = run.t[-1] if until is None else until
-    keep &= t <= end + 1e-9
-    final = run.head_xy[-1] if until is None else np.array([np.interp(end, run.t, run.head_xy[:, i]) for i in (0, 1)])
-    parts = [(final - trial.final_head_xy) / RESIDUAL_SIGMAS["final_m"]]
-    sensors = sensor_model(run.scenario.effects)  # what the camera and the IMU would report of the run
-    if trial.camera is not None:
-        seen = keep & ~np.isnan(trial.camera[:, 0])
-        parts += list(((sensors.camera(t[seen], run.t, run.head_xy) - trial.camera[seen, :2]) / RESIDUAL_SIGMAS["camera_m"]).T)
-    else:
-        parts.append((sensors.imu(t[keep], run.t, run.head_yaw_rate) - trial.head_yaw_rate[keep])
-                     / RESIDUAL_SIGMAS["yaw_rate_rad_s"])
-    return np.concatenate(parts)
-
-
-def residual_channels(residual) -> np.ndarray:
-    """Which channel each of one trial's residuals (trial_residual) belongs to: its first two are the final
-    position, the rest the camera path or the yaw rate."""
-    return np.r_[FINAL_CHANNEL, FINAL_CHANNEL, np.full(len(residual) - 2, PATH_CHANNEL)]
-
-
-def difference_step(parameter: "Parameter", value: float, relative_step: float = 0.05) -> float:
-    """The forward-difference step of a parameter at `value`: relative_step of the value, at least 0.5% of
-    the bounds' range for a friction coefficient; 2% of the range for an effect parameter."""
-    span = parameter.upper - parameter.lower
-    return max(relative_step * abs(value), 0.005 * span) if parameter.is_friction else 0.02 * span
-
-
 def _replay_residual(trial, friction: Friction, effects=None) -> np.ndarray:
-    return trial_residual(trial, _replay(trial, friction, effects))
+    return trial_residual(trial, replay(trial, friction, effects))
 
 
 def _replay_residual_and_jacobian(trial, friction: Friction, effects, names) -> tuple:
     """One trial's residuals and their derivatives by the parameters `names` from one replay with exact
     sensitivities (engine/tangent.py)."""
-    run = _replayer(trial).run(friction, effects, sensitivities=names)
+    run = replayer(trial).run(friction, effects, sensitivities=names)
     r = trial_residual(trial, run)
     return r, residual_jacobian(trial, run, r)
-
-
-def residual_jacobian(trial, run, residual) -> np.ndarray:
-    """d trial_residual / d parameter (one column per run.sensitivity_names) of a run with sensitivities: exact,
-    the residuals being linear in the logged states (Run.residual_jacobian)."""
-    return run.residual_jacobian(lambda moved: trial_residual(trial, moved), residual)
 
 
 def exact_jacobian_available(names) -> bool:
@@ -350,10 +211,10 @@ def exact_jacobian_available(names) -> bool:
 def _input_noise_covariance(trial, friction: Friction, effects, samples: int, seed: int, length=None) -> np.ndarray:
     """Covariance of one trial's residuals over `samples` replays with resampled angle noise; `length`:
     that of the unperturbed replay's residuals, when the caller has it (else it is replayed)."""
-    replayer, rng = _replayer(trial), np.random.default_rng(seed)
+    own, rng = replayer(trial), np.random.default_rng(seed)
     if length is None:
-        length = len(trial_residual(trial, replayer.run(friction, effects)))
-    draws = [trial_residual(trial, replayer.run_resampled(friction, effects, rng)) for _ in range(samples)]
+        length = len(trial_residual(trial, own.run(friction, effects)))
+    draws = [trial_residual(trial, own.run_resampled(friction, effects, rng)) for _ in range(samples)]
     draws = np.array([d for d in draws if len(d) == length])  # a replay that stopped elsewhere: left out
     if len(draws) < 2:
         return np.zeros((length, length))
@@ -370,7 +231,7 @@ class CampaignResiduals:
         self.simulations = 0
 
     def __call__(self, friction: Friction, effects=None) -> np.ndarray:
-        parts = _map_trials(_replay_residual, self.trials, friction, _with_fixed(self.effects, effects), self.executor)
+        parts = map_trials(_replay_residual, self.trials, friction, with_fixed(self.effects, effects), self.executor)
         self.simulations += len(self.trials)
         self.channels = np.concatenate([residual_channels(p) for p in parts])
         return np.concatenate(parts)
@@ -378,7 +239,7 @@ class CampaignResiduals:
     def with_jacobian(self, friction: Friction, effects, names) -> tuple:
         """(the stacked residuals, their derivatives by the parameters `names`) from one replay per trial
         (exact_jacobian_available(names) must hold)."""
-        jobs = [(t, friction, _with_fixed(self.effects, effects), tuple(names)) for t in self.trials]
+        jobs = [(t, friction, with_fixed(self.effects, effects), tuple(names)) for t in self.trials]
         if self.executor is None:
             parts = [_replay_residual_and_jacobian(*job) for job in jobs]
         else:
@@ -393,7 +254,7 @@ class CampaignResiduals:
         causes, from `samples` resampled replays per trial (plus one unperturbed)."""
         from scipy.linalg import block_diag
 
-        jobs = [(t, friction, _with_fixed(self.effects, effects), samples, seed + k)
+        jobs = [(t, friction, with_fixed(self.effects, effects), samples, seed + k)
                 for k, t in enumerate(self.trials)]
         if self.executor is None:
             blocks = [_input_noise_covariance(*job) for job in jobs]
@@ -430,32 +291,14 @@ class Uncertainty:
         return "\n".join(lines)
 
 
-def _channel_variances(r, channels, num_parameters: int) -> np.ndarray:
-    """Per residual, its channel's variance in standardized units. The residuals are scaled by stated
-    uncertainties (RESIDUAL_SIGMAS) that are not all equally tight: the camera path's 1 cm scale is
-    twice its noise, the final position's 1 cm is all hand-measurement noise. So each channel's variance
-    is estimated from its own residuals (degrees of freedom shared in proportion), and the final
-    position's may exceed 1 (a misfit larger than the noise) but not fall below it: two numbers a trial
-    cannot show that the hand measured better than stated."""
-    m = len(r)
-    channels = np.zeros(m, dtype=int) if channels is None or len(channels) != m else channels
-    variance = np.empty(m)
-    for c in np.unique(channels):
-        mine = channels == c
-        dof = max(mine.sum() * (m - num_parameters) / m, 1.0)
-        estimate = float(r[mine] @ r[mine]) / dof
-        variance[mine] = max(estimate, 1.0) if c == FINAL_CHANNEL else estimate
-    return variance
-
-
 def uncertainty(residuals, friction: Friction, *, parameters=None, relative_step=0.05,
                 max_relative_error=0.3, effects=None, input_noise_samples: int = INPUT_NOISE_SAMPLES) -> Uncertainty:
     """Standard errors and correlations of the free parameters from the residual Jacobian at
     (`friction`, `effects`): the sandwich (J^T J)^-1 J^T S J (J^T J)^-1 of least squares with S the
-    residual variance of each channel (_channel_variances), plus, with `input_noise_samples`, the
+    residual variance of each channel (channel_variances), plus, with `input_noise_samples`, the
     covariance that the angle noise in the replays' input causes (CampaignResiduals.input_noise: that
     many more replays per trial; INPUT_NOISE_SAMPLES by default, 0 leaves it out and understates the
-    intervals several times over, README); a parameter is identifiable when its relative standard error
+    intervals several times over, docs/identification.md); a parameter is identifiable when its relative standard error
     is below `max_relative_error`. Costs one residual evaluation per free parameter, plus one.
 
     The Jacobian is taken in the parameters' own units (forward differences of 5% of the value, at least
@@ -475,7 +318,7 @@ def uncertainty(residuals, friction: Friction, *, parameters=None, relative_step
         per_percent.append(0.01 * (abs(value) if p.is_friction and value > 0 else span))
     jac = np.column_stack(columns)
     m, n = jac.shape
-    variance = _channel_variances(r0, getattr(residuals, "channels", None), n)
+    variance = channel_variances(r0, getattr(residuals, "channels", None), n)
     u, sv, vt = np.linalg.svd(jac, full_matrices=False)
     keep = sv > 1e-9 * max(sv.max(), 1e-300)
     inv = (vt[keep].T / sv[keep] ** 2) @ vt[keep]  # (J^T J)^-1 on the identifiable subspace
@@ -515,22 +358,6 @@ class ProgramResult:
                 "cost": self.cost, "iterations": self.iterations, "simulations": self.simulations,
                 "held_at_start": self.held,
                 "screening": None if self.screening is None else dataclasses.asdict(self.screening)}
-
-
-def _bounded_step(jac, r, damping, lower, upper):
-    """The Levenberg-Marquardt step as a Drake MathematicalProgram solved by SNOPT:
-    min |r + J d|^2 + damping |d|^2 subject to lower <= d <= upper."""
-    from pydrake.solvers import MathematicalProgram, SnoptSolver
-
-    n = jac.shape[1]
-    prog = MathematicalProgram()
-    d = prog.NewContinuousVariables(n, "step")
-    prog.Add2NormSquaredCost(np.vstack([jac, math.sqrt(damping) * np.eye(n)]), np.concatenate([-r, np.zeros(n)]), d)
-    prog.AddBoundingBoxConstraint(lower, upper, d)
-    result = SnoptSolver().Solve(prog, np.zeros(n))
-    if not result.is_success():
-        raise Rc1Error(f"identify: SNOPT failed on a step ({result.get_solution_result()})")
-    return result.GetSolution(d)
 
 
 def fit_program(residuals, *, start: Friction, parameters=None, log_step: float = 0.02, max_iterations: int = 10,
@@ -585,7 +412,7 @@ def fit_program(residuals, *, start: Friction, parameters=None, log_step: float 
         iterations = k
         jac = jacobian_at(u, r)
         while True:
-            step = _bounded_step(jac, r, damping, lower - u, upper - u)
+            step = bounded_step(jac, r, damping, lower - u, upper - u)
             r_new = residuals(*model_at(u + step))
             cost_new = 0.5 * float(r_new @ r_new)
             if cost_new < cost:
@@ -626,7 +453,7 @@ def identify_program(campaign, *, trials=None, workers=None, scheduler=None, sta
     of its result over every originally free parameter. With `screened`, the parameters the start's
     uncertainty finds not identifiable stay at their start values (screen()); the result's warnings
     say so; `input_noise_samples` goes to the result's uncertainty(). Returns (ProgramResult, Uncertainty)."""
-    chosen = choose_trials(campaign, trials)
+    chosen = campaign.chosen(trials)
     parameters = parameters or DEFAULT_PARAMETERS
     with make_executor(workers=workers or min(os.cpu_count() or 1, len(chosen)), scheduler=scheduler) as executor:
         residuals = CampaignResiduals(chosen, executor=executor, effects=effects)
@@ -644,7 +471,7 @@ def identify_equation_error(campaign, *, trials=None, start=PAPER_MANUAL, parame
     """The equation-error fit (equation_error.py) on the chosen trials: no simulation."""
     from .equation_error import fit_equation_error
 
-    return fit_equation_error(choose_trials(campaign, trials), start=start, parameters=parameters, effects=effects,
+    return fit_equation_error(campaign.chosen(trials), start=start, parameters=parameters, effects=effects,
                               seed=seed)
 
 
@@ -653,7 +480,7 @@ def seeded_start(campaign, *, trials=None, start=PAPER_MANUAL, parameters=None) 
     estimates (no simulation): (start, EquationErrorResult or None when no trial has a camera)."""
     from .equation_error import fit_equation_error, sees_whole_configuration
 
-    chosen = choose_trials(campaign, trials)
+    chosen = campaign.chosen(trials)
     if not any(sees_whole_configuration(t) for t in chosen):
         return start, None
 
@@ -682,10 +509,10 @@ class HeldOut:
 def split_trials(campaign, *, trials=None, validation=None) -> tuple:
     """(estimation, validation) trials: `trials` (all when None) and `validation` (by default the
     campaign's other trials); Rc1Error for an unknown id or a trial in both."""
-    estimation = choose_trials(campaign, trials)
+    estimation = campaign.chosen(trials)
     if validation is None:
         return estimation, [t for t in campaign.trials if t not in estimation]
-    held = choose_trials(campaign, validation)
+    held = campaign.chosen(validation)
     overlap = sorted({t.trial_id for t in held} & {t.trial_id for t in estimation})
     if overlap:
         raise Rc1Error(f"{campaign.path}: trial '{overlap[0]}' is both an estimation and a validation trial")

@@ -128,7 +128,8 @@ def module_motion(x, geometry: ChainGeometry):
 
 
 @jit
-def _wheel_kinematics(x, joint_in_parent, joint_in_child, wheel_module, wheel_offset, wheel_toe):
+def wheel_kinematics_kernel(x, joint_in_parent, joint_in_child, wheel_module, wheel_offset, wheel_toe):
+    """wheel_kinematics on the geometry's arrays (compiled; the friction solve and the engine call it)."""
     phi, _, p, _ = _module_motion(x, joint_in_parent, joint_in_child)
     nw = wheel_module.shape[0]
     nj = joint_in_parent.shape[0]
@@ -163,4 +164,4 @@ def wheel_kinematics(x, geometry: ChainGeometry) -> WheelKinematics:
     i (p - c) per unit rate, so the Jacobian column of the head yaw is i (p_w - p_head) and that of
     joint j is i (p_w - c_j) for the wheels behind joint j (zero for those ahead of it).
     """
-    return WheelKinematics(*_wheel_kinematics(np.asarray(x, dtype=float), *geometry.arrays))
+    return WheelKinematics(*wheel_kinematics_kernel(np.asarray(x, dtype=float), *geometry.arrays))

@@ -97,6 +97,13 @@ class Campaign:
         """What the loader took in but the model cannot do, once per joint: readings past the joint limit."""
         return limit_warnings(self.trials)
 
+    def chosen(self, trial_ids=None) -> List[Trial]:
+        """The trials with these ids (all when None), in the campaign's order; Rc1Error for an id it lacks."""
+        missing = sorted(set(trial_ids or []) - {t.trial_id for t in self.trials})
+        if missing:
+            raise Rc1Error(f"{self.path}: no trial '{missing[0]}' in the campaign")
+        return [t for t in self.trials if trial_ids is None or t.trial_id in trial_ids]
+
 
 def limit_warnings(trials) -> List[str]:
     """One line per joint whose readings pass its limit (Trial.beyond_limit) in any of `trials`."""

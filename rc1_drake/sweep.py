@@ -17,7 +17,8 @@ from typing import List
 
 import numpy as np
 
-from .config import Failure, Friction, Gait, Numerics, Rc1Error, Scenario, Start, Stop, validate
+from .config import Failure, Friction, Gait, Numerics, Rc1Error, Scenario, Start, Stop
+from .scenarios import validate
 from .metrics import summarize
 
 PATH_PERIOD_S = 0.1

@@ -56,11 +56,11 @@ class Variation:
 
 
 # The paper's campaign (section 4, Table 2) plus one joint-2 trial. The bias straightens a joint-7
-# failure in this model (README).
+# failure in this model (docs/identification.md).
 PAPER_DESIGN = [Case([], 5), Case([7], 5), Case([13], 5), Case([7], 5, bias_deg=-0.9), Case([2], 1)]
 
 # The richest design within RC1's servos (joint speed A omega <= 140 deg/s) whose trials replay
-# faithfully (benchmarks/identification.py, README "Friction identification"): three gait frequencies
+# faithfully (benchmarks/identification.py, docs/identification.md): three gait frequencies
 # spread the rolling speeds (mu_long against c_long); failures of joints 7 and 13 at two speeds show
 # c_joint. (Joint-2 failures circle, and their replays drift from the truth even at its coefficients.)
 IDENTIFICATION_DESIGN = [

@@ -152,7 +152,7 @@ def test_a_trial_recorded_in_motion_replays_closer_from_its_fitted_start(tmp_pat
     """Made by the independent model (reference.py) and recorded 1 s after the robot started: the protocol's
     start (centre of mass at rest) is wrong there, the start fitted to the first 0.5 s of data is not."""
     from rc1_drake.config import Friction
-    from rc1_drake.identify import PAPER_MANUAL
+    from rc1_drake.sysid.parameters import PAPER_MANUAL
     from rc1_drake.replay import fit_starts
     from rc1_drake.synthesize import Noise
 

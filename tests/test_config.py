@@ -2,7 +2,8 @@
 
 import pytest
 
-from rc1_drake.config import DEFAULT_SCENARIOS, Rc1Error, list_scenarios, load_scenario
+from rc1_drake.config import Rc1Error
+from rc1_drake.scenarios import DEFAULT_SCENARIOS, list_scenarios, load_scenario
 
 
 def test_shipped_scenarios_load():

@@ -274,21 +274,21 @@ def _campaign(folder, effects, seed=11, design=DESIGN, seconds=SECONDS, truth_mo
 
 
 def _diagnose(campaign, **kwargs):
-    # Three 2 s trials identify no friction coefficient (README, Friction identification), so the tests
+    # Three 2 s trials identify no friction coefficient (docs/identification.md), so the tests
     # hold them at the truth and spend no replays on them; the friction refit is tested in test_identify.
     return dg.diagnose(campaign, friction=Friction(), held=FRICTION_NAMES, workers=2, probe_study=False, **kwargs)
 
 
-# A wheel's lateral friction asymmetry is flat at 0 on the design above (Coulomb sticking: README) and a toe
+# A wheel's lateral friction asymmetry is flat at 0 on the design above (Coulomb sticking: docs/diagnosis.md) and a toe
 # or a tilt explains what it does to straight gaits; turning left and right (a 4 deg bias on every joint,
 # Eq. 7), the body slides outward to opposite sides, so the asymmetry changes the two turns differently.
 TURNING = [Case([], 2), Case([], 1, bias_deg=4.0), Case([], 1, bias_deg=-4.0)]
 
 
-# A failed joint's dry friction has a threshold (README): 3 s trials, where 2 s ones tie it with a longitudinal
+# A failed joint's dry friction has a threshold (docs/diagnosis.md): 3 s trials, where 2 s ones tie it with a longitudinal
 # asymmetry. It is accepted at 0.40 (two trust steps) and estimated further once accepted (0.60 +- 0.05 (se)).
 # A lateral asymmetry needs the turning trials; at 0.5 on them it is ranked first but ties with a toe or a head
-# drag (README: `ambiguous` on seeds 0-2), at 0.8 it is found (0.81 +- 0.02 (se); head drag 39% linear).
+# drag (docs/diagnosis.md: `ambiguous` on seeds 0-2), at 0.8 it is found (0.81 +- 0.02 (se); head drag 39% linear).
 # (A head drag on circling joint-2 trials was found here while the plant clamped the replays' servos at
 # 1.19 N m; with replays that follow the measured angles it is not detectable at 0.5-1.0 on 2-3 s trials.)
 @pytest.mark.slow
@@ -340,7 +340,7 @@ def test_look_alikes_get_no_confident_wrong_answer(tmp_path, effect, key, value,
 # searches 5 at most) would not be significant on these trials even at 5 deg (a 3-standard-error tilt is
 # 6.7 deg downhill x, 20 deg y, measured); a Stribeck breakaway of 1.5 times the Coulomb
 # friction moves these trials by less than their noise (only the circling joint-2 failure responds, and
-# chaotically: README): its fit is not significant. Its linear detectable strength is not asserted: the
+# chaotically: docs/diagnosis.md): its fit is not significant. Its linear detectable strength is not asserted: the
 # breakaway acts below a slip speed, and its column at 0 (probe 0.5) differs between machines with the same
 # pinned packages (3.3 on one, 0.94 on an AMD EPYC), while the fit finds 0.42 +- 0.62 on both. All three
 # hidden in one campaign, to spend one.

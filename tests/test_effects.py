@@ -8,7 +8,8 @@ import math
 import numpy as np
 import pytest
 
-from rc1_drake.config import Gait, Rc1Error, Scenario, Start, Stop, validate
+from rc1_drake.config import Gait, Rc1Error, Scenario, Start, Stop
+from rc1_drake.scenarios import validate
 from rc1_drake.effects import LIBRARY, Effect, EffectParameter, commanded_gait, parse_effect, register
 from rc1_drake.friction import implicit_friction_force, wheel_friction_forces
 from rc1_drake.protocol import simulate
@@ -169,7 +170,8 @@ def test_effects_reach_a_run_from_the_command_line_and_from_a_model_file(tmp_pat
     import json
 
     from rc1_drake.cli import main
-    from rc1_drake.config import Friction, model_to_yaml
+    from rc1_drake.config import Friction
+    from rc1_drake.scenarios import model_to_yaml
 
     effects = {"ground_slope_deg": 4.0, "ground_slope_direction_deg": 90.0, "head_drag_mu": 0.2}
     expected = simulate(scenario=dataclasses.replace(SHORT, friction=Friction(mu_lat=1.2), effects=effects))

@@ -10,7 +10,8 @@ import pytest
 
 from rc1_drake.cli import main
 from rc1_drake.config import FRICTION_NAMES, Friction, Rc1Error, Stop, Z95
-from rc1_drake.identify import (PAPER_MANUAL, Eq6Objective, avs, friction_to_yaml, load_friction_file)
+from rc1_drake.identify import Eq6Objective, avs, friction_to_yaml, load_friction_file
+from rc1_drake.sysid.parameters import PAPER_MANUAL
 from rc1_drake.measurements import load_campaign
 from rc1_drake.synthesize import Case, synthesize_campaign
 
@@ -37,7 +38,7 @@ def test_avs_history_never_rises_and_has_table_1_shape(campaign):
 
 
 def test_frozen_coefficients_stay(campaign):
-    from rc1_drake.identify import DEFAULT_PARAMETERS
+    from rc1_drake.sysid.parameters import DEFAULT_PARAMETERS
 
     params = [dataclasses.replace(p, frozen=p.name != "mu_long") for p in DEFAULT_PARAMETERS]
     result = avs(Eq6Objective(campaign.trials), iterations=2, parameters=params, factors=(0.5,))
@@ -132,7 +133,8 @@ def test_program_fit_recovers_what_the_trials_identify_and_holds_the_rest(tmp_pa
     mu_lat's interval passes the 30% bar: the angle noise a kinematic replay passes on, docs/findings.md.) And at
     one gait speed the rolling resistance's Coulomb and viscous parts are one direction of the data."""
     from rc1_drake.config import Gait
-    from rc1_drake.identify import DEFAULT_PARAMETERS, CampaignResiduals, identify_program, uncertainty
+    from rc1_drake.identify import CampaignResiduals, identify_program, uncertainty
+    from rc1_drake.sysid.parameters import DEFAULT_PARAMETERS
 
     folder = tmp_path / "c"
     synthesize_campaign(folder, design=[Case([7], 1), Case([], 1), Case([], 1, gait=Gait(frequency_deg_s=70.0)),
@@ -185,7 +187,8 @@ def test_an_effect_parameter_is_fitted_beside_the_friction(tmp_path):
     a replay of noise-free angles ends within ~1 mm of the truth, and 0.1 deg of toe moves it ~3 mm.
     (With the sensor noise of data/README.md the estimates scatter by ~0.3 deg over seeds while the
     reported standard error is ~0.07: the potentiometer noise the replay follows is not in it yet.)"""
-    from rc1_drake.identify import CampaignResiduals, effect_parameters, fit_program, uncertainty
+    from rc1_drake.identify import CampaignResiduals, fit_program, uncertainty
+    from rc1_drake.sysid.parameters import effect_parameters
     from rc1_drake.synthesize import Noise
 
     folder = tmp_path / "c"
@@ -205,7 +208,8 @@ def test_input_noise_widens_the_intervals_to_cover_the_scatter(tmp_path):
     """With sensor noise, a 1 deg wheel toe fitted from one 3 s trial lands several output-noise standard
     errors away (the replay follows noisy potentiometer angles); resampling that input noise through
     the replay widens the interval until it covers the truth."""
-    from rc1_drake.identify import CampaignResiduals, effect_parameters, fit_program, uncertainty
+    from rc1_drake.identify import CampaignResiduals, fit_program, uncertainty
+    from rc1_drake.sysid.parameters import effect_parameters
 
     folder = tmp_path / "c"
     synthesize_campaign(folder, design=[Case([], 1)], seed=4, effects={"wheel_toe_deg": 1.0},

@@ -159,7 +159,7 @@ def test_the_library_names_two_sensor_faults_per_joint_and_the_camera_and_imu_fa
 @pytest.mark.xfail(strict=True, reason="kinematic replays of servo-driven data: joint 9 at 5 deg misfits more than "
                                        "joint 11 at 4.9 (docs/findings.md, 2026-11-25)")
 def test_a_diagnosis_asked_for_sensor_faults_names_the_joint_whose_potentiometer_is_off(tmp_path):
-    """A regression example (the rates over seeds: benchmarks/foreign.py, README): joint 9 reading 5 deg high on
+    """A regression example (the rates over seeds: benchmarks/foreign.py, docs/measurements.md): joint 9 reading 5 deg high on
     3 s `none,J7x2` trials. With the physical effects alone the same campaign is ambiguous or unexplained."""
     from rc1_drake import diagnose as dg
     from rc1_drake.config import FRICTION_NAMES, Z95
@@ -178,7 +178,7 @@ def test_a_late_camera_and_a_biased_imu_are_in_the_readings_and_the_replay_predi
     without them, and the yaw-rate channel (what a trial without a camera is scored on) likewise; without them
     both miss by far more. The faults do not touch the run."""
     from rc1_drake.compare import score_trial
-    from rc1_drake.identify import trial_residual
+    from rc1_drake.sysid.residual import trial_residual
 
     silent = dataclasses.replace(Noise().scaled(0.0), camera_dropout=0.0)
     faults = {"camera_delay_s": 0.2, "imu_scale_error": 0.1, "imu_bias_rad_s": 0.05}
@@ -235,7 +235,7 @@ def test_a_diagnosis_asked_for_sensor_faults_finds_a_late_camera_the_physics_can
 
 @pytest.mark.slow
 def test_a_diagnosis_asked_for_sensor_faults_names_a_potentiometer_gain_in_data_another_model_made(tmp_path):
-    """A regression example (rates: benchmarks/foreign.py, README): reference.py's 3 s `none,J7x2` trials with joint
+    """A regression example (rates: benchmarks/foreign.py, docs/measurements.md): reference.py's 3 s `none,J7x2` trials with joint
     9 reading 8% large in its servo's loop, starts fitted (seed 2 of 0-5, where it was found 2/6; found, the estimate
     sits at the 10% search bound)."""
     from rc1_drake import diagnose as dg

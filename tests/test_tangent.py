@@ -5,7 +5,7 @@ import pytest
 
 from rc1_drake.engine.dynamics import chain_terms, plant_numbers
 from rc1_drake.engine.tangent import chain_tangent, wheel_local_tangent
-from rc1_drake.kinematics import _wheel_kinematics
+from rc1_drake.kinematics import wheel_kinematics_kernel
 
 from conftest import first_seconds
 
@@ -35,7 +35,7 @@ def test_chain_tangent_matches_central_differences():
 
 
 def _local(x, arrays):
-    _, direction, jacobian = _wheel_kinematics(x, *arrays)
+    _, direction, jacobian = wheel_kinematics_kernel(x, *arrays)
     return np.conj(direction)[:, None] * jacobian
 
 
