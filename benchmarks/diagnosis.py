@@ -55,7 +55,7 @@ def parse_design(text: str) -> list:
 
 
 # On DESIGN a head drag looks like a longitudinal asymmetry, and a lateral friction asymmetry like a toe or a
-# tilt; circling and turning trials tell them apart (README).
+# tilt; circling and turning trials tell them apart (docs/diagnosis.md).
 DESIGNS = {"head_drag": "none,J2x2", "lateral_friction_asymmetry": "nonex2,noneb4,noneb-4"}
 REFERENCE = {  # a clearly visible strength on DESIGN's 3 s trials (diagnose.probe_visibility)
     "wheel_toe": ("wheel_toe_deg", 1.5),

@@ -1,7 +1,7 @@
 """Data this model did not make: compare, identify and diagnose on campaigns made by the independent model.
 
     python benchmarks/foreign.py [--seeds 2] [--diagnose-seeds 10] [--only compare,identify,diagnose]
-                                 [--record-after-s 0,1] [--workers 2] [--out benchmarks/out/foreign.jsonl] [--readme]
+                                 [--record-after-s 0,1] [--workers 2] [--out benchmarks/out/foreign.jsonl] [--markdown]
 
 reference.py makes the campaigns: kinematic joints as the paper drives them, the head at rest at its start, its own
 limit model, default sensor noise. Each section puts it beside what the project's own model (synthesize's drake
@@ -17,7 +17,7 @@ truth) gives, seed for seed, or beside that model's floor:
   reading 5 deg high and camera frames stamped 0.1 s late, as benchmarks/diagnosis.py runs them; each (but the
   late camera without the sensor candidates) also with each trial's start fitted (`--start-rates fit`).
 
-A row per campaign streams to --out (rerunning resumes); --readme writes the tables into README.md.
+A row per campaign streams to --out (rerunning resumes); --markdown writes the tables into docs/measurements.md.
 """
 
 import argparse
@@ -31,11 +31,13 @@ from pathlib import Path
 import numpy as np
 
 import diagnosis
+from doc_blocks import REPO_ROOT, check_block, write_block
 from rc1_drake.compare import compare_campaign, simulator_error
 from rc1_drake.config import FRICTION_NAMES, Failure, Friction, Scenario, Start, Stop
 from rc1_drake.executor import make_executor
 from rc1_drake.gait import serpenoid
-from rc1_drake.identify import PAPER_MANUAL, CampaignResiduals, fit_program, screen, uncertainty
+from rc1_drake.identify import CampaignResiduals, fit_program, screen, uncertainty
+from rc1_drake.sysid.parameters import PAPER_MANUAL
 from rc1_drake.measurements import load_campaign
 from rc1_drake.synthesize import IDENTIFICATION_DESIGN, synthesize_campaign
 
@@ -56,9 +58,7 @@ SECTIONS = ("compare", "identify", "diagnose")
 # seeds 6-11 the kinematic replay's joint limits (docs/findings.md): the diagnose rates are reported on seeds from
 # here on, which chose nothing.
 DIAGNOSE_FIRST_SEED = 12
-README = Path(__file__).resolve().parents[1] / "README.md"
-BEGIN = "<!-- foreign-table: written by benchmarks/foreign.py --readme -->"
-END = "<!-- foreign-table end -->"
+FOREIGN_PAGE, FOREIGN_BLOCK, WRITER = REPO_ROOT / "docs" / "measurements.md", "foreign-table", "benchmarks/foreign.py --markdown"
 
 
 def floor_error(trial) -> float:
@@ -208,12 +208,6 @@ def diagnose_table(rows: list) -> str:
     return "\n".join(lines)
 
 
-def write_readme(text: str) -> None:
-    readme = README.read_text()
-    head, rest = readme.split(BEGIN, 1)
-    README.write_text(head + BEGIN + "\n" + text + "\n" + END + rest.split(END, 1)[1])
-
-
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=2, help="campaigns per compare and identify cell")
@@ -222,7 +216,7 @@ def main():
     parser.add_argument("--record-after-s", default="0,1", help="compare's recording starts, s after the robot's")
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--out", type=Path, default=Path("benchmarks/out/foreign.jsonl"))
-    parser.add_argument("--readme", action="store_true", help="write the tables into README.md")
+    parser.add_argument("--markdown", action="store_true", help="write the tables into docs/measurements.md")
     args = parser.parse_args()
     args.only = [s.strip() for s in args.only.split(",")]
     unknown = [s for s in args.only if s not in SECTIONS]
@@ -232,9 +226,8 @@ def main():
         args.record_after_s = [float(v) for v in args.record_after_s.split(",")]
     except ValueError:
         raise SystemExit(f"--record-after-s: cannot read {args.record_after_s!r} (expected seconds such as 0,1)") from None
-    readme = README.read_text()
-    if args.readme and (BEGIN not in readme or END not in readme):
-        raise SystemExit(f"{README}: no {BEGIN!r} ... {END!r} markers to write the tables between")
+    if args.markdown:
+        check_block(FOREIGN_PAGE, FOREIGN_BLOCK, WRITER)
     args.out.parent.mkdir(parents=True, exist_ok=True)
     done = {}
     if args.out.exists():
@@ -253,8 +246,8 @@ def main():
     tables = {"compare": compare_table, "identify": identify_table, "diagnose": diagnose_table}
     text = "\n\n".join(tables[s]([r for r in rows if r["job"][0] == s]) for s in SECTIONS if s in args.only)
     print(text)
-    if args.readme:
-        write_readme(text)
+    if args.markdown:
+        write_block(FOREIGN_PAGE, FOREIGN_BLOCK, WRITER, text)
 
 
 if __name__ == "__main__":

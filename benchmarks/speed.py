@@ -1,7 +1,7 @@
 """Speed: the project's targets measured in one table, both engines side by side (issues 8, 27).
 
     python benchmarks/speed.py [--only single,replay,batch,identification,diagnosis] [--workers 2]
-                               [--repeats 3] [--json benchmarks/out/speed.json] [--readme]
+                               [--repeats 3] [--json benchmarks/out/speed.json] [--markdown]
 
 1. single: the nominal run and the joint-7 failure (the default Scenario) on the Drake Diagram and on
    the compiled engine (best of --repeats, sessions reused): wall times, their ratio, the compiled
@@ -18,7 +18,7 @@
 5. diagnosis: `rc1 diagnose` (every candidate effect) on the shipped 21-trial campaign.
 
 Each section prints as it finishes; the table at the end gives every figure with its target.
-`--readme` writes that table into README.md between its speed-table markers (a re-run section replaces its rows).
+`--markdown` writes that table into docs/speed.md between its speed-table markers (a re-run section replaces its rows).
 """
 
 import argparse
@@ -26,12 +26,12 @@ import dataclasses
 import json
 import os
 import platform
-import re
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
+from doc_blocks import check_block, read_block, write_block
 
 from rc1_drake.config import REPO_ROOT, Failure, Scenario, Stop
 from rc1_drake.engine import use_engine
@@ -140,8 +140,8 @@ def batch(args) -> list:
 
 
 def identification(args) -> list:
-    from rc1_drake.identify import (PAPER_MANUAL, CampaignResiduals, Eq6Objective, avs, fit_program,
-                                    identify_equation_error, screen)
+    from rc1_drake.identify import CampaignResiduals, Eq6Objective, avs, fit_program, identify_equation_error, screen
+    from rc1_drake.sysid.parameters import PAPER_MANUAL
     from rc1_drake.measurements import load_campaign
     from rc1_drake.synthesize import IDENTIFICATION_DESIGN, synthesize_campaign
 
@@ -204,25 +204,19 @@ def diagnosis(args) -> list:
             ("diagnosis: replays", result.simulations, "", None)]
 
 
-BEGIN, END = "<!-- speed-table: written by benchmarks/speed.py --readme -->", "<!-- speed-table end -->"
+SPEED_PAGE, SPEED_BLOCK, WRITER = REPO_ROOT / "docs" / "speed.md", "speed-table", "benchmarks/speed.py --markdown"
 
 
-def write_readme_table(rows, machine) -> None:
-    """Write this run's figures into the README's speed table (between BEGIN and END): a figure measured again
-    replaces its row, the others stay (so one section can be re-run alone), new ones are appended."""
-    readme = REPO_ROOT / "README.md"
-    text = readme.read_text()
-    if BEGIN not in text or END not in text:
-        raise SystemExit(f"{readme}: no speed-table markers ({BEGIN} ... {END})")
+def write_speed_table(rows, machine) -> None:
+    """Write this run's figures into docs/speed.md's table: a figure measured again replaces its row, the others
+    stay (so one section can be re-run alone), new ones are appended."""
     fresh = {n: f"| {n} | {v:.3g} | {t} | {'' if m is None else ('yes' if m else 'no')} |" for n, v, t, m in rows}
-    old = text[text.index(BEGIN):text.index(END)].splitlines()
+    old = read_block(SPEED_PAGE, SPEED_BLOCK, WRITER).splitlines()
     kept = [line for line in old if line.startswith("| ") and not line.startswith("| figure")]
     table = [fresh.pop(line.split(" | ")[0][2:], line) for line in kept] + list(fresh.values())
-    lines = [BEGIN, f"Measured on {machine} by `python benchmarks/speed.py --readme` (last run "
+    lines = [f"Measured on {machine} by `python benchmarks/speed.py --markdown` (last run "
              f"{time.strftime('%Y-%m-%d')}):", "", "| figure | measured | target | met |", "|---|---|---|---|"]
-    lines += table
-    table = "\n".join(lines + [END])
-    readme.write_text(re.sub(re.escape(BEGIN) + ".*?" + re.escape(END), lambda _: table, text, flags=re.S))
+    write_block(SPEED_PAGE, SPEED_BLOCK, WRITER, "\n".join(lines + table))
 
 
 def main():
@@ -231,12 +225,14 @@ def main():
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--json", default=None, help="also write the table here")
-    parser.add_argument("--readme", action="store_true", help="write the table into README.md (speed-table markers)")
+    parser.add_argument("--markdown", action="store_true", help="write the table into docs/speed.md (its markers)")
     args = parser.parse_args()
     chosen = [s.strip() for s in args.only.split(",") if s.strip()]
     unknown = [s for s in chosen if s not in SECTIONS]
     if unknown:
         parser.error(f"--only: unknown section {unknown[0]!r} (choose from {', '.join(SECTIONS)})")
+    if args.markdown:
+        check_block(SPEED_PAGE, SPEED_BLOCK, WRITER)
     machine = (f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
                f"python {platform.python_version()}")
     print(f"machine: {machine}")
@@ -247,8 +243,8 @@ def main():
     print(f"\n{'figure':52} {'measured':>10} {'target':>10}  met")
     for name, value, target, met in rows:
         print(f"{name:52} {value:>10.3g} {target:>10}  {'' if met is None else ('yes' if met else 'NO')}")
-    if args.readme:
-        write_readme_table(rows, machine)
+    if args.markdown:
+        write_speed_table(rows, machine)
     if args.json:
         Path(args.json).parent.mkdir(parents=True, exist_ok=True)
         Path(args.json).write_text(json.dumps({"machine": machine, "rows": [

@@ -1,0 +1,34 @@
+"""Benchmark tables in the docs are written by the benchmarks, never copied by hand: each lives between two
+markers that name the benchmark writing it, and a benchmark checks its markers before its long work starts."""
+
+import re
+from pathlib import Path
+
+REPO_ROOT = Path(__file__).resolve().parents[1]
+
+
+def markers(name: str, writer: str) -> tuple:
+    return f"<!-- {name}: written by {writer} -->", f"<!-- {name} end -->"
+
+
+def check_block(path: Path, name: str, writer: str) -> None:
+    """Exit with one line unless `path` holds the block's two markers (call before the long work)."""
+    begin, end = markers(name, writer)
+    text = path.read_text() if path.is_file() else ""
+    if begin not in text or end not in text:
+        raise SystemExit(f"{path}: no '{begin}' ... '{end}' markers to write the {name} between")
+
+
+def read_block(path: Path, name: str, writer: str) -> str:
+    """The text between the block's markers."""
+    begin, end = markers(name, writer)
+    text = path.read_text()
+    return text[text.index(begin) + len(begin):text.index(end)].strip("\n")
+
+
+def write_block(path: Path, name: str, writer: str, body: str) -> None:
+    """Replace the text between the block's markers with `body`."""
+    check_block(path, name, writer)
+    begin, end = markers(name, writer)
+    block = f"{begin}\n{body.strip()}\n{end}"
+    path.write_text(re.sub(re.escape(begin) + ".*?" + re.escape(end), lambda _: block, path.read_text(), flags=re.S))
