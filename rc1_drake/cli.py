@@ -616,27 +616,7 @@ def cmd_diagnose(args) -> int:
                       trials=trials, held=args.freeze, workers=args.workers, scheduler=args.scheduler,
                       input_noise_samples=args.input_noise_samples, max_rounds=args.rounds,
                       probe_study=not args.no_probe_study, progress=progress, start_rates=args.start_rates)
-    print(f"Diagnosis of {campaign.path} ({len(result._trials)} trials; friction these data identify: "
-          f"{', '.join(result.free) or 'none'}, the others held):")
-    for k, r in enumerate(result.rounds):
-        print(f"\nround {k + 1}: candidates against {r.baseline.label} (held-out: leave one trial out; "
-              f"final-position misfit p = {r.misfit_p:.2g}; today's model's parameters: {r.refit})")
-        print(r.table())
-        if r.polished:
-            print(f"{r.accepted} accepted, then estimated further: {r.polished}")
-    print("\nVisibility: the final head position's change (cm) per probe step of each candidate, per case:")
-    print(result.visibility_table())
-    print("\nError waterfall (Eq. 6 error, the same with the replay's own miss on each trial's motion taken off, and"
-          " yaw-rate fit, per case; held-out after the start):")
-    print(result.waterfall_table())
-    for d in result.not_detectable:
-        print(f"not detectable here: {d['name']}: {d['reason']}" + (f"; would be seen by {d['experiment']}"
-                                                                   if d.get("experiment") else ""))
-    for c in result.candidates:
-        if c.accepted and c.indistinguishable_from:
-            print(f"note: {c.name} cannot be told apart from {', '.join(c.indistinguishable_from)} by these trials"
-                  + (f"; {c.experiment}" if c.experiment else ""))
-    print(f"\nverdict: {result.verdict}: {result.explanation}")
+    print(result.format())
     out = args.out or Path("out") / f"{Path(campaign.path).name}.model.yaml"
     _write_atomically(out, lambda p: p.write_text(model_to_yaml(
         result.friction, result.effects, comment=f"rc1 diagnose {campaign.path}: {result.verdict}")))

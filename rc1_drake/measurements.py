@@ -67,7 +67,7 @@ class Trial:
     # measurement to explain (a potentiometer's offset or gain error), loaded with a warning
     beyond_limit: Dict[int, float] = dataclasses.field(default_factory=dict)
     # (3,) the head's vx, vy (m/s) and yaw rate (rad/s) at t = 0, where the data give them (an optional key) or
-    # a fit set them (diagnose.start_coordinates); None: not known
+    # a fit set them (diagnose.coordinates.start_coordinates); None: not known
     initial_head_rates: Optional[np.ndarray] = None
 
     @property

@@ -20,7 +20,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rc1_drake import diagnose as dg
+from rc1_drake.diagnose import THRESHOLDS, diagnose, verdict as verdicts
+from rc1_drake.diagnose.coordinates import Coordinate, START, effect_coordinates, friction_coordinates, model_at
+from rc1_drake.diagnose.decide import decide
+from rc1_drake.diagnose.fit import bounded_least_squares, fit
+from rc1_drake.diagnose.linearize import Linearization, trial_weights
+from rc1_drake.diagnose.replays import evaluate, replay_error
+from rc1_drake.diagnose.report import CandidateResult, HeldOutScore, Round
+from rc1_drake.diagnose.significance import Misfit, final_misfit, misfit, subspace_cosine, wald_p
 from rc1_drake.config import FRICTION_NAMES, Friction, Gait, Stop, Z95
 from rc1_drake.effects import LIBRARY, Effect, EffectParameter, register
 from rc1_drake.measurements import Trial, load_campaign
@@ -41,17 +48,17 @@ def test_ground_slope_coordinates_round_trip():
 
 
 def test_the_tilt_is_searched_within_a_lab_floor_unless_the_model_has_a_ramp():
-    level = {c.name: (c.lower, c.upper) for c in dg.effect_coordinates("ground_slope", {})}
+    level = {c.name: (c.lower, c.upper) for c in effect_coordinates("ground_slope", {})}
     assert level == {"ground_slope_x_deg": (-5.0, 5.0), "ground_slope_y_deg": (-5.0, 5.0)}
-    ramp = {c.name: (c.value, c.lower, c.upper) for c in dg.effect_coordinates(
+    ramp = {c.name: (c.value, c.lower, c.upper) for c in effect_coordinates(
         "ground_slope", {"ground_slope_deg": 8.0, "ground_slope_direction_deg": 180.0})}
     assert ramp["ground_slope_x_deg"] == pytest.approx((-8.0, -8.0, 5.0))  # the known ramp stays inside the search
     assert ramp["ground_slope_y_deg"][1:] == (-5.0, 5.0)
 
 
 def test_model_at_writes_friction_and_effects_through_their_coordinates():
-    coords = dg.friction_coordinates(Friction())[:2] + dg.effect_coordinates("ground_slope", {})
-    friction, effects = dg.model_at(Friction(), {"wheel_toe_deg": 1.0}, coords, [0.1, 2.0, 0.0, -3.0])
+    coords = friction_coordinates(Friction())[:2] + effect_coordinates("ground_slope", {})
+    friction, effects = model_at(Friction(), {"wheel_toe_deg": 1.0}, coords, [0.1, 2.0, 0.0, -3.0])
     assert (friction.c_joint, friction.mu_lat, friction.mu_long) == (0.1, 2.0, Friction().mu_long)
     assert effects["wheel_toe_deg"] == 1.0  # the model's other effects stay
     assert effects["ground_slope_deg"] == pytest.approx(3.0) and effects["ground_slope_direction_deg"] == pytest.approx(-90)
@@ -61,14 +68,14 @@ def test_bounded_least_squares_matches_lstsq_and_respects_bounds():
     rng = np.random.default_rng(0)
     x, d_true = rng.normal(size=(40, 3)), np.array([0.5, -1.0, 2.0])
     r = -x @ d_true
-    free = dg.bounded_least_squares(x, r, np.full(3, -10.0), np.full(3, 10.0))
+    free = bounded_least_squares(x, r, np.full(3, -10.0), np.full(3, 10.0))
     assert free == pytest.approx(d_true, abs=1e-6)
-    capped = dg.bounded_least_squares(x, r, np.full(3, -10.0), np.array([10.0, 10.0, 1.0]))
+    capped = bounded_least_squares(x, r, np.full(3, -10.0), np.array([10.0, 10.0, 1.0]))
     assert capped[2] == pytest.approx(1.0, abs=1e-8)
     # With the third held at 1, the first two are the least squares of the rest (by hand: lstsq).
     expected = np.linalg.lstsq(x[:, :2], -(r + x[:, 2]), rcond=None)[0]
     assert capped[:2] == pytest.approx(expected, abs=1e-6)
-    assert dg.bounded_least_squares(np.zeros((5, 1)), np.ones(5), -np.ones(1), np.ones(1)) == pytest.approx([0.0])
+    assert bounded_least_squares(np.zeros((5, 1)), np.ones(5), -np.ones(1), np.ones(1)) == pytest.approx([0.0])
 
 
 def _linearization(columns, r0, noise_sd=0.0, trials=4):
@@ -76,8 +83,8 @@ def _linearization(columns, r0, noise_sd=0.0, trials=4):
     kinds = ["none", "J7"] * trials
     fakes = [dataclasses.replace(_FAKE_TRIAL, trial_id=f"t{k}", failed_joints=[] if kinds[k] == "none" else [7])
              for k in range(trials)]
-    coords = [dg.Coordinate("a", "friction", 0.0, -5, 5, 0.1), dg.Coordinate("b", "effect", 0.0, -5, 5, 1.0)]
-    return dg.Linearization(trials=fakes, friction=Friction(), effects={}, coordinates=coords, r0=r0,
+    coords = [Coordinate("a", "friction", 0.0, -5, 5, 0.1), Coordinate("b", "effect", 0.0, -5, 5, 1.0)]
+    return Linearization(trials=fakes, friction=Friction(), effects={}, coordinates=coords, r0=r0,
                             eq6=[0.0] * trials, yaw_fit=[0.0] * trials, columns=columns,
                             noise=[np.eye(12) * noise_sd**2 for _ in range(trials)])
 
@@ -90,10 +97,10 @@ def test_fit_recovers_a_linear_truth_and_its_held_out_predictions_are_exact():
     rng = np.random.default_rng(1)
     a, b = rng.normal(size=(4, 12)), rng.normal(size=(4, 12))
     lin = _linearization({"a": list(a), "b": list(b)}, list(-(0.7 * a - 1.3 * b)))  # noise-free: d = (0.7, -1.3)
-    fitted = dg.fit(lin, ["a", "b"])
+    fitted = fit(lin, ["a", "b"])
     assert fitted.values == pytest.approx([0.7, -1.3], abs=1e-6)
     assert all(np.abs(h).max() < 1e-5 for h in fitted.held_out)  # leave-one-out of an exact model: exact
-    only_a = dg.fit(lin, ["a"])
+    only_a = fit(lin, ["a"])
     assert only_a.held_out_sum_of_squares() > 1.0  # the missing column shows on held-out trials
 
 
@@ -105,7 +112,7 @@ def test_a_trials_start_is_fitted_to_its_start_rows_and_the_physics_to_all_rows(
     n_trials, rows, start_rows = 4, 30, 20
     lin = _linearization({"a": list(rng.normal(size=(n_trials, 12))), "b": list(rng.normal(size=(n_trials, 12)))},
                          [np.zeros(12)] * n_trials, trials=n_trials)
-    starts = [dg.Coordinate(f"t{k}:{i}", dg.START, 0.0, -1.0, 1.0, 1.0, (k, i)) for k in range(n_trials)
+    starts = [Coordinate(f"t{k}:{i}", START, 0.0, -1.0, 1.0, 1.0, (k, i)) for k in range(n_trials)
               for i in range(3)]
     coords = [lin.coordinates[0], *starts]
 
@@ -122,11 +129,11 @@ def test_a_trials_start_is_fitted_to_its_start_rows_and_the_physics_to_all_rows(
 
     lin = dataclasses.replace(lin, coordinates=coords, columns=columns, r0=at_truth(columns), w0=at_truth(wcolumns),
                               wcolumns=wcolumns, noise=[np.zeros((rows, rows))] * n_trials)
-    fitted = dg.fit(lin, names)
+    fitted = fit(lin, names)
     assert fitted.values == pytest.approx(truth, abs=1e-9)
     assert all(np.abs(h).max() < 1e-9 for h in fitted.held_out)
     drift = np.column_stack([columns[f"t0:{i}"][0] for i in range(3)]) @ np.array([0.3, -0.2, 0.1])
-    drifted = dg.fit(dataclasses.replace(lin, r0=[lin.r0[0] + drift, *lin.r0[1:]]), names).values
+    drifted = fit(dataclasses.replace(lin, r0=[lin.r0[0] + drift, *lin.r0[1:]]), names).values
     own = np.column_stack([wcolumns[f"t0:{i}"][0] for i in range(3)])
     by_hand = np.linalg.lstsq(own, -(lin.w0[0] + wcolumns["a"][0] * drifted[0]), rcond=None)[0]
     assert drifted[1:4] == pytest.approx(by_hand, abs=1e-9)  # its start rows' fit, at the physics fitted
@@ -137,10 +144,10 @@ def test_wald_test_finds_a_real_effect_and_not_a_null_one():
     rng = np.random.default_rng(3)
     a, b, noise = rng.normal(size=(4, 12)), rng.normal(size=(4, 12)), rng.normal(size=(4, 12))
     columns = {"a": list(a), "b": list(b)}
-    real = dg.fit(_linearization(columns, list(-(0.5 * a + 2.0 * b) + noise)), ["a", "b"])
-    null = dg.fit(_linearization(columns, list(-0.5 * a + noise)), ["a", "b"])
-    assert dg.wald_p(real, ["b"]) < 1e-6
-    assert dg.wald_p(null, ["b"]) > 0.01
+    real = fit(_linearization(columns, list(-(0.5 * a + 2.0 * b) + noise)), ["a", "b"])
+    null = fit(_linearization(columns, list(-0.5 * a + noise)), ["a", "b"])
+    assert wald_p(real, ["b"]) < 1e-6
+    assert wald_p(null, ["b"]) > 0.01
 
 
 def test_final_position_misfit_is_uniform_under_the_noise_and_small_beyond_it():
@@ -148,11 +155,11 @@ def test_final_position_misfit_is_uniform_under_the_noise_and_small_beyond_it():
     ps = []
     for _ in range(200):
         r0 = [rng.normal(size=12) * math.sqrt(1.0 + 0.5**2) for _ in range(4)]
-        ps.append(dg.final_misfit(_linearization({"a": [np.zeros(12)] * 4, "b": [np.zeros(12)] * 4}, r0,
+        ps.append(final_misfit(_linearization({"a": [np.zeros(12)] * 4, "b": [np.zeros(12)] * 4}, r0,
                                                  noise_sd=0.5), r0, 0)[2])
     assert 0.35 < np.mean(ps) < 0.65 and np.mean(np.array(ps) < 0.05) < 0.12  # uniform: mean 0.5, 5% below 0.05
     big = [rng.normal(size=12) * 4 for _ in range(4)]
-    assert dg.final_misfit(_linearization({"a": [np.zeros(12)] * 4, "b": [np.zeros(12)] * 4}, big), big, 0)[2] < 1e-3
+    assert final_misfit(_linearization({"a": [np.zeros(12)] * 4, "b": [np.zeros(12)] * 4}, big), big, 0)[2] < 1e-3
 
 
 def test_trials_whose_replays_move_with_the_input_noise_weigh_less_in_the_fit():
@@ -162,12 +169,12 @@ def test_trials_whose_replays_move_with_the_input_noise_weigh_less_in_the_fit():
     r0[1] = r0[1] + 30.0 * a[1]  # a J7 trial (odd index) far off: its case's replays are noisy (variance 3)
     lin = _linearization({"a": a, "b": [np.zeros(12)] * 4}, r0)
     lin.noise = [np.eye(12) * (3.0 if k % 2 else 0.0) for k in range(4)]
-    lin.weights = dg.trial_weights(lin.trials, lin.noise)
+    lin.weights = trial_weights(lin.trials, lin.noise)
     assert lin.weights == pytest.approx([1.0, 0.5, 1.0, 0.5])  # 1 / sqrt(1 + 3)
     w = np.repeat(lin.weights, 12)
     x, r = np.concatenate(a), np.concatenate(r0)
     expected = np.linalg.lstsq((w * x)[:, None], -(w * r), rcond=None)[0][0]  # weighted least squares by hand
-    assert dg.fit(lin, ["a"]).values[0] == pytest.approx(expected, abs=1e-6)
+    assert fit(lin, ["a"]).values[0] == pytest.approx(expected, abs=1e-6)
 
 
 def test_a_few_outlying_trials_are_named_and_the_rest_tested_without_them():
@@ -175,17 +182,17 @@ def test_a_few_outlying_trials_are_named_and_the_rest_tested_without_them():
     residual = [rng.normal(size=12) for _ in range(20)]
     columns = {"a": [np.zeros(12)] * 20, "b": [np.zeros(12)] * 20}
     residual[3][:2] = [40.0, -30.0]  # 50 cm off where the noise is 1 cm
-    left = dg.misfit(_linearization(columns, residual, trials=20), residual, 0)
+    left = misfit(_linearization(columns, residual, trials=20), residual, 0)
     assert list(left.outliers) == ["t3"] and left.outliers["t3"]["off_cm"] == pytest.approx(50.0) and left.consistent
     for k in (5, 8, 11):  # four of twenty: the campaign's misfit, not a few trials'
         residual[k][:2] = [40.0, 0.0]
-    left = dg.misfit(_linearization(columns, residual, trials=20), residual, 0)
+    left = misfit(_linearization(columns, residual, trials=20), residual, 0)
     assert len(left.outliers) == 4 and not left.consistent
 
 
 def _checked(name, after, before=100.0):
     """A candidate checked by simulation: held-out sum of squares `before` -> `after`."""
-    return dg.CandidateResult(name=name, parameters={}, coordinates={}, interval95={}, wald_p=1e-5,
+    return CandidateResult(name=name, parameters={}, coordinates={}, interval95={}, wald_p=1e-5,
                               held_out_before=1.0, held_out_after=1.0, held_out_reduction=0.0, aic_delta=-10.0,
                               score=0.0, status="candidate",
                               simulated={"held_out_sum_of_squares_before": before,
@@ -194,9 +201,9 @@ def _checked(name, after, before=100.0):
 
 
 def _round(candidates, **decision):
-    baseline = dg.HeldOutScore(label="today's model", effects={}, sum_of_squares=100.0, eq6_pct={}, yaw_fit_pct={},
+    baseline = HeldOutScore(label="today's model", effects={}, sum_of_squares=100.0, eq6_pct={}, yaw_fit_pct={},
                                eq6_without_miss_pct={})
-    return dg.Round(friction=Friction(), effects={}, baseline=baseline, candidates=candidates,
+    return Round(friction=Friction(), effects={}, baseline=baseline, candidates=candidates,
                     accepted=decision.get("accepted"), misfit_p=0.5, ambiguous=decision.get("ambiguous", []),
                     partial=decision.get("partial"))
 
@@ -209,28 +216,28 @@ def _round(candidates, **decision):
 ])
 def test_an_effect_is_accepted_only_when_it_halves_the_held_out_error_and_no_rival_comes_close(afters, decision):
     candidates = [_checked(n, a) for n, a in zip("ab", afters, strict=True)]
-    assert dg.decide(candidates) == decision
+    assert decide(candidates) == decision
     assert [c.accepted for c in candidates] == [decision[0] == "a", False]
 
 
 def test_when_two_candidates_tie_a_third_checked_one_is_reported_as_clearly_behind():
     candidates = [_checked("a", 30.0), _checked("b", 40.0), _checked("c", 60.0)]
-    assert dg.decide(candidates) == (None, ["a", "b"], None)
+    assert decide(candidates) == (None, ["a", "b"], None)
     assert candidates[2].status == "held-out gain, clearly less than the best one's"
 
 
 def test_a_partial_explanation_is_reported_and_never_called_found_or_nothing():
-    quiet, loud = dg.Misfit(p=0.5, outliers={}), dg.Misfit(p=1e-6, outliers={})
+    quiet, loud = Misfit(p=0.5, outliers={}), Misfit(p=1e-6, outliers={})
     partial = _checked("head_drag", 60.0)
-    verdict, text = dg._verdict([], quiet, [_round([partial], partial="head_drag")])
+    verdict, text = verdicts.verdict([], quiet, [_round([partial], partial="head_drag")])
     assert verdict == "unexplained" and "head_drag" in text and "40%" in text
     unseen = _checked("head_drag", 95.0)
     unseen.detectable_strength = {"head_drag_mu": 0.31}
-    verdict, text = dg._verdict([], quiet, [_round([unseen])])
+    verdict, text = verdicts.verdict([], quiet, [_round([unseen])])
     assert verdict == "no_missing_effect" and "head_drag_mu 0.31" in text  # what it could have missed
-    assert dg._verdict(["wheel_toe"], quiet, [_round([], accepted="wheel_toe")])[0] == "effect_found"
+    assert verdicts.verdict(["wheel_toe"], quiet, [_round([], accepted="wheel_toe")])[0] == "effect_found"
     rounds = [_round([], accepted="wheel_toe"), _round([partial], partial="head_drag")]
-    verdict, text = dg._verdict(["wheel_toe"], loud, rounds)
+    verdict, text = verdicts.verdict(["wheel_toe"], loud, rounds)
     assert verdict == "unexplained" and "wheel_toe helped" in text and "head_drag is significant" in text
 
 
@@ -244,8 +251,8 @@ def test_a_noise_free_trial_is_its_own_twin_and_its_replays_error_is_all_bias(tm
         np.testing.assert_allclose(twin.final_head_xy, trial.final_head_xy, rtol=0, atol=1e-12)
         np.testing.assert_allclose(twin.q, trial.q, rtol=0, atol=1e-12)  # NaN (the failed joint) included
         np.testing.assert_allclose(twin.camera, trial.camera, rtol=0, atol=1e-12)
-        residual, _, _, until, _ = dg._evaluate(trial, Friction(), {})
-        bias, covariance = dg.replay_error(trial, Friction(), {}, until, 2, 0)
+        residual, _, _, until, _ = evaluate(trial, Friction(), {})
+        bias, covariance = replay_error(trial, Friction(), {}, until, 2, 0)
         # The replay misses its own noise-free trial (measured: 1-2 mm) and the bootstrap sees exactly that:
         # what is left once the bias is off is the potentiometer noise the smoothing finds in clean angles.
         assert np.abs(residual).max() > 0.05
@@ -255,10 +262,10 @@ def test_a_noise_free_trial_is_its_own_twin_and_its_replays_error_is_all_bias(tm
 
 def test_subspace_cosine():
     x = np.random.default_rng(5).normal(size=(30, 2))
-    assert dg.subspace_cosine(x[:, :1], 3 * x[:, :1]) == pytest.approx(1.0)
-    assert dg.subspace_cosine(x[:, :1], x) == pytest.approx(1.0)  # inside the span
+    assert subspace_cosine(x[:, :1], 3 * x[:, :1]) == pytest.approx(1.0)
+    assert subspace_cosine(x[:, :1], x) == pytest.approx(1.0)  # inside the span
     q, _ = np.linalg.qr(x)
-    assert dg.subspace_cosine(q[:, :1], q[:, 1:]) == pytest.approx(0.0, abs=1e-12)
+    assert subspace_cosine(q[:, :1], q[:, 1:]) == pytest.approx(0.0, abs=1e-12)
 
 
 # ------------------------------------------------------------------------------------- hidden-effect campaigns
@@ -276,7 +283,7 @@ def _campaign(folder, effects, seed=11, design=DESIGN, seconds=SECONDS, truth_mo
 def _diagnose(campaign, **kwargs):
     # Three 2 s trials identify no friction coefficient (docs/identification.md), so the tests
     # hold them at the truth and spend no replays on them; the friction refit is tested in test_identify.
-    return dg.diagnose(campaign, friction=Friction(), held=FRICTION_NAMES, workers=2, probe_study=False, **kwargs)
+    return diagnose(campaign, friction=Friction(), held=FRICTION_NAMES, workers=2, probe_study=False, **kwargs)
 
 
 # A wheel's lateral friction asymmetry is flat at 0 on the design above (Coulomb sticking: docs/diagnosis.md) and a toe
@@ -311,7 +318,7 @@ def test_a_visible_hidden_effect_is_ranked_first_accepted_and_recovered(tmp_path
     assert final == pytest.approx(result.effects[key])
     assert first.simulated["held_out_sum_of_squares_after"] <= 0.5 * first.simulated["held_out_sum_of_squares_before"]
     # Eq. 6 of a 2 s trial has a floor: the hand's 1 cm (mean |error| 1.25 cm in the plane) over ~0.4 m.
-    floor = np.mean([100 * 0.0125 / np.linalg.norm(t.final_head_xy - t.initial_head_pose[:2]) for t in result._trials])
+    floor = np.mean([100 * 0.0125 / np.linalg.norm(t.final_head_xy - t.initial_head_pose[:2]) for t in result.trials])
     for eq6 in ("mean_eq6_without_replay_miss_pct", "mean_eq6_error_pct"):
         after, before = result.waterfall[-1][eq6], result.waterfall[-2][eq6]
         assert after - floor <= 0.5 * (before - floor), (eq6, before, after, floor)  # the error above the floor halved
@@ -353,7 +360,7 @@ def test_effects_the_replays_cannot_see_are_reported_not_detectable_and_nothing_
     assert "servo_lag" in hidden and "gait" in hidden["servo_lag"]["experiment"]
     assert "ground_slope" in hidden, result.rounds[0].table()
     stribeck = next(c for c in result.candidates if c.name == "stribeck_friction")
-    assert not stribeck.accepted and stribeck.wald_p >= dg.P_ACCEPT, (stribeck.status, stribeck.coordinates)
+    assert not stribeck.accepted and stribeck.wald_p >= THRESHOLDS.p_accept, (stribeck.status, stribeck.coordinates)
     assert f"stribeck_ratio {stribeck.detectable_strength['stribeck_ratio']:.2g}" in result.explanation
 
 
@@ -365,7 +372,7 @@ def test_a_campaign_without_a_hidden_effect_gets_nothing_accepted(tmp_path, trut
     result = _diagnose(_campaign(tmp_path, {}, seed=12, truth_model=truth_model), start_rates=start_rates)
     assert result.accepted == [] and result.verdict == "no_missing_effect", result.rounds[0].table()
     assert result.effects == {}
-    assert len(result.starts) == (3 * len(result._trials) if start_rates == "fit" else 0)
+    assert len(result.starts) == (3 * len(result.trials) if start_rates == "fit" else 0)
 
 
 class FloorSeams(Effect):

@@ -161,12 +161,12 @@ def test_the_library_names_two_sensor_faults_per_joint_and_the_camera_and_imu_fa
 def test_a_diagnosis_asked_for_sensor_faults_names_the_joint_whose_potentiometer_is_off(tmp_path):
     """A regression example (the rates over seeds: benchmarks/foreign.py, docs/measurements.md): joint 9 reading 5 deg high on
     3 s `none,J7x2` trials. With the physical effects alone the same campaign is ambiguous or unexplained."""
-    from rc1_drake import diagnose as dg
+    from rc1_drake.diagnose import diagnose
     from rc1_drake.config import FRICTION_NAMES, Z95
 
     synthesize_campaign(tmp_path, design=[Case([], 1), Case([7], 2)], effects={"potentiometer_offset_j9_deg": 5.0},
                         seed=0, stop=Stop(line_x_m=None, revolutions=None, time_limit_s=3.0))
-    result = dg.diagnose(load_campaign(tmp_path), friction=Friction(), held=FRICTION_NAMES, workers=2,
+    result = diagnose(load_campaign(tmp_path), friction=Friction(), held=FRICTION_NAMES, workers=2,
                          probe_study=False, candidates=["physical", "sensor"])
     assert result.accepted == ["potentiometer_offset_j9"] and result.verdict == "effect_found", result.rounds[0].table()
     estimate, se = result.final_coordinates["potentiometer_offset_j9_deg"]
@@ -218,18 +218,18 @@ def test_a_diagnosis_asked_for_sensor_faults_finds_a_late_camera_the_physics_can
     """A regression example (rates: benchmarks/diagnosis.py --effects camera_delay): frames stamped 0.1 s late.
     The physical effects see nothing in it (no_missing_effect); asked for, the camera's delay is found and what is
     left is the noise (the twins' final positions are their heads', not what their late camera shows)."""
-    from rc1_drake import diagnose as dg
+    from rc1_drake.diagnose import diagnose
     from rc1_drake.config import FRICTION_NAMES, Z95
 
     synthesize_campaign(tmp_path, design=[Case([], 1), Case([7], 2)], effects={"camera_delay_s": 0.1},
                         seed=0, stop=Stop(line_x_m=None, revolutions=None, time_limit_s=3.0))
     campaign = load_campaign(tmp_path)
-    result = dg.diagnose(campaign, friction=Friction(), held=FRICTION_NAMES, workers=2, probe_study=False,
+    result = diagnose(campaign, friction=Friction(), held=FRICTION_NAMES, workers=2, probe_study=False,
                          candidates=["physical", "sensor"])
     assert result.accepted == ["camera_delay"] and result.verdict == "effect_found", result.explanation
     estimate, se = result.final_coordinates["camera_delay_s"]
     assert abs(estimate - 0.1) < Z95 * se, (estimate, se)
-    physics = dg.diagnose(campaign, friction=Friction(), held=FRICTION_NAMES, workers=2, probe_study=False)
+    physics = diagnose(campaign, friction=Friction(), held=FRICTION_NAMES, workers=2, probe_study=False)
     assert physics.accepted == [], physics.explanation
 
 
@@ -238,12 +238,12 @@ def test_a_diagnosis_asked_for_sensor_faults_names_a_potentiometer_gain_in_data_
     """A regression example (rates: benchmarks/foreign.py, docs/measurements.md): reference.py's 3 s `none,J7x2` trials with joint
     9 reading 8% large in its servo's loop, starts fitted (seed 2 of 0-5, where it was found 2/6; found, the estimate
     sits at the 10% search bound)."""
-    from rc1_drake import diagnose as dg
+    from rc1_drake.diagnose import diagnose
     from rc1_drake.config import FRICTION_NAMES, Z95
 
     synthesize_campaign(tmp_path, design=[Case([], 1), Case([7], 2)], effects={"potentiometer_gain_j9_error": 0.08},
                         seed=2, truth_model="reference", stop=Stop(line_x_m=None, revolutions=None, time_limit_s=3.0))
-    result = dg.diagnose(load_campaign(tmp_path), friction=Friction(), held=FRICTION_NAMES, workers=2,
+    result = diagnose(load_campaign(tmp_path), friction=Friction(), held=FRICTION_NAMES, workers=2,
                          probe_study=False, candidates=["physical", "sensor"], start_rates="fit")
     assert result.accepted == ["potentiometer_gain_j9"] and result.verdict == "effect_found", result.explanation
     estimate, se = result.final_coordinates["potentiometer_gain_j9_error"]
@@ -269,13 +269,13 @@ def test_an_offset_in_the_acquisition_only_leaves_the_robot_alone_and_reads_past
 def test_readings_past_a_joint_limit_put_that_potentiometer_among_the_candidates_and_it_is_named(tmp_path):
     """A regression example: joint 9's acquisition reads 5 deg high (the robot is sound), its readings pass the
     limit, the loader warns, and the default diagnosis considers that joint's offset beside the physics."""
-    from rc1_drake import diagnose as dg
+    from rc1_drake.diagnose import diagnose
     from rc1_drake.config import FRICTION_NAMES, Z95
 
     synthesize_campaign(tmp_path, design=[Case([], 1), Case([7], 2)], seed=0,
                         effects={"potentiometer_offset_j9_deg": 5.0, "potentiometer_offset_j9_in_servo_loop": 0.0},
                         stop=Stop(line_x_m=None, revolutions=None, time_limit_s=3.0))
-    result = dg.diagnose(load_campaign(tmp_path), friction=Friction(), held=FRICTION_NAMES, workers=2,
+    result = diagnose(load_campaign(tmp_path), friction=Friction(), held=FRICTION_NAMES, workers=2,
                          probe_study=False)
     names = {c.name for c in result.candidates}
     assert "potentiometer_offset_j9" in names and not names & {"potentiometer_offset_j8", "potentiometer_offset_j10"}

@@ -1,0 +1,109 @@
+"""The diagnosis's coordinates: the directions of its linearization (a friction coefficient, one coordinate of an
+effect, or one of a trial's start rates), and the model or trials they set."""
+
+import dataclasses
+from typing import Dict, List, Optional
+
+from ..config import Friction
+from ..effects import LIBRARY, effect_values
+from ..start import START_NAMES
+from ..sysid.parameters import DEFAULT_PARAMETERS, difference_step
+
+# A trial's start (its head's vx, vy, yaw rate at t = 0) as nuisance coordinates: forward-difference steps
+# and bounds (m/s, m/s, rad/s). Its first START_FIT_S of data, not a convention, fix it in every fit (fit).
+START = "start"
+
+
+START_STEPS = (0.02, 0.02, 0.1)
+
+
+START_BOUNDS = (1.0, 1.0, 5.0)
+
+
+@dataclasses.dataclass
+class Coordinate:
+    """A direction of the linearization: a friction coefficient or one coordinate of an effect."""
+
+    name: str
+    owner: str  # "friction", START or the effect's name
+    value: float
+    lower: float
+    upper: float
+    step: float
+    start_of: Optional[tuple] = None  # a START coordinate's (trial index, index in START_NAMES)
+
+
+def friction_coordinates(friction: Friction, held=()) -> List[Coordinate]:
+    out = []
+    for p in [p for p in DEFAULT_PARAMETERS if p.name not in held]:
+        value = getattr(friction, p.name)
+        out.append(Coordinate(p.name, "friction", value, p.lower, p.upper, difference_step(p, value)))
+    return out
+
+
+def effect_coordinates(name: str, effects: Dict[str, float]) -> List[Coordinate]:
+    effect = LIBRARY[name]
+    values = effect.coordinates(effect_values(effects, effect))
+    return [Coordinate(p.key, name, float(values[p.key]), min(p.lower, values[p.key]), max(p.upper, values[p.key]),
+                       p.probe_step) for p in effect.coordinate_space()]
+
+
+def start_coordinates(trials) -> List[Coordinate]:
+    """Each trial's head rates at t = 0 (Trial.initial_head_rates, which must be set) as three coordinates."""
+    return [Coordinate(f"{t.trial_id}:{name}", START, float(t.initial_head_rates[i]), -bound, bound, step, (k, i))
+            for k, t in enumerate(trials)
+            for i, (name, step, bound) in enumerate(zip(START_NAMES, START_STEPS, START_BOUNDS, strict=True))]
+
+
+def starts_at(trials, coordinates: List[Coordinate], values) -> list:
+    """`trials` with their START coordinates among `coordinates` set to `values`."""
+    out = list(trials)
+    for c, v in zip(coordinates, values, strict=True):
+        if c.owner == START:
+            k, i = c.start_of
+            rates = out[k].initial_head_rates.copy()
+            rates[i] = float(v)
+            out[k] = dataclasses.replace(out[k], initial_head_rates=rates)
+    return out
+
+
+def physics_names(lin, names) -> List[str]:
+    """`names` without the trials' start coordinates: the model's parameters (what the misfit's dof count)."""
+    return [n for n in names if lin.coordinate(n).owner != START]
+
+
+def model_at(friction: Friction, effects: Dict[str, float], coordinates: List[Coordinate], values) -> tuple:
+    """(friction, effects) with the coordinates set to `values` (effects written back through their classes;
+    START coordinates belong to the trials: starts_at)."""
+    friction = dataclasses.replace(friction, **{c.name: float(v) for c, v in zip(coordinates, values, strict=True)
+                                                if c.owner == "friction"})
+    effects = dict(effects)
+    for owner in dict.fromkeys(c.owner for c in coordinates if c.owner not in ("friction", START)):
+        effect = LIBRARY[owner]
+        current = effect.coordinates(effect_values(effects, effect))
+        current.update({c.name: float(v) for c, v in zip(coordinates, values, strict=True) if c.owner == owner})
+        effects.update(effect.from_coordinates(current))
+    return friction, effects
+
+
+def coordinate_values(coords, friction, effects, trials) -> List[float]:
+    values = []
+    for c in coords:
+        if c.owner == START:
+            values.append(float(trials[c.start_of[0]].initial_head_rates[c.start_of[1]]))
+        elif c.owner == "friction":
+            values.append(getattr(friction, c.name))
+        else:
+            effect = LIBRARY[c.owner]
+            values.append(float(effect.coordinates(effect_values(effects, effect))[c.name]))
+    return values
+
+
+def acts_in_failed_joints_only(c: Coordinate) -> bool:
+    if c.owner in ("friction", START):
+        return c.name == "c_joint"
+    return LIBRARY[c.owner].failed_joints_only
+
+
+def signed_step(c: Coordinate) -> float:
+    return c.step if c.value + c.step <= c.upper else -c.step

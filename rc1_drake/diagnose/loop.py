@@ -1,0 +1,233 @@
+"""The diagnosis's loop (stage 4): linearize, fit today's model, rank and decide, accept and move the model, repeat
+while what is left is not the noise; then the verdict."""
+
+import dataclasses
+import os
+import time
+from typing import Dict, List, Optional
+
+from ..compare import CampaignReport
+from ..config import FRICTION_NAMES, START_MODES, Friction
+from ..effects import LIBRARY, active, candidate_names, potentiometer_faults
+from ..executor import make_executor
+from ..residuals import where_it_fails
+from ..sysid.residual import trial_residual
+from .coordinates import START, physics_names
+from .decide import decide, held_out_by_simulation, rank, screen_friction, unrefitted
+from .fit import fit, polish, starts_fitted
+from .linearize import Linearization, linearize, moved, with_replay_error
+from .probe import suggest_experiments
+from .replays import INPUT_NOISE_SAMPLES, Evaluator, replay_and_score
+from .report import Diagnosis, Round, waterfall_step
+from .significance import interval95, misfit
+from .thresholds import THRESHOLDS, Thresholds
+from .verdict import verdict
+
+MAX_ROUNDS = 3
+REFINED_CANDIDATES = 3  # the best candidates by the linear ranking, refined by a secant step before the checks
+CHECKED_CANDIDATES = 2  # of those, the best significant ones checked by simulation on held-out trials
+
+
+def diagnose(campaign, *, friction: Optional[Friction] = None, effects=None, candidates=None, trials=None,
+             held=(), workers=None, scheduler=None, input_noise_samples=INPUT_NOISE_SAMPLES, max_rounds=MAX_ROUNDS,
+             probe_study=True, progress=None, start_rates="rest", thresholds: Thresholds = THRESHOLDS) -> Diagnosis:
+    """The loop (the package's docstring) on `campaign` (its `trials`, all by default), from the model (`friction`,
+    `effects`); `candidates` are effect names or groups (effects.candidate_names; by default the physical effects,
+    and the potentiometer faults of joints whose readings pass their limit); the friction coefficients named in
+    `held` stay at their values. The head's rates at t = 0 of a trial that does not give them: `start_rates`
+    "rest", the protocol's convention; "fit", three nuisance coordinates per trial fixed in every fit by its first
+    START_FIT_S, for data whose start follows no known convention."""
+    started = time.perf_counter()
+    if start_rates not in START_MODES:
+        raise ValueError(f"start_rates must be one of {START_MODES}, got {start_rates!r}")
+    friction, effects, chosen = friction or Friction(), dict(effects or {}), campaign.chosen(trials)
+    replayed, not_detectable = _candidates(chosen, effects, candidates)
+    with make_executor(workers=workers or min(os.cpu_count() or 1, len(chosen)), scheduler=scheduler) as executor:
+        evaluator = Evaluator(executor, progress)
+        lin = linearize(chosen, friction, effects, replayed, evaluator, input_noise_samples=input_noise_samples,
+                        held=held, starts=start_rates == "fit")
+        search = _Search.begin(lin, evaluator, chosen, replayed, held, input_noise_samples, thresholds)
+        search.stop_reason = f"{max_rounds} rounds"
+        for index in range(max_rounds):
+            if not search.round(index):
+                break
+        report, where, left, final = search.finish(campaign)
+    for c in (c for r in search.rounds for c in r.candidates if c.status == "not detectable here"):
+        if c.name not in [d["name"] for d in not_detectable]:
+            not_detectable.append({"name": c.name, "reason": "its largest physical value would not be significant on "
+                                   "these trials", "experiment": c.experiment})
+    if probe_study:
+        suggest_experiments(search.rounds, not_detectable, search.lin.friction, search.lin.effects, workers, progress)
+    found, explanation = verdict(search.accepted, left, search.rounds)
+    return Diagnosis(campaign=str(campaign.path), start_friction=friction, start_effects=effects, free=search.free,
+                     rounds=search.rounds, waterfall=search.waterfall, friction=search.lin.friction,
+                     effects=search.lin.effects, accepted=search.accepted, verdict=found, explanation=explanation,
+                     misfit_p=left.p, unexplained_trials=left.outliers, not_detectable=not_detectable,
+                     where_it_fails=where, simulations=evaluator.simulations, wall_s=time.perf_counter() - started,
+                     trials=search.lin.trials, report=report, stop_reason=search.stop_reason,
+                     final_coordinates={n: v for n, v in final.items() if n not in search.nuisance},
+                     starts={n: v for n, v in final.items() if n in search.nuisance})
+
+
+def _candidates(trials, effects, candidates) -> tuple:
+    """(the candidates a replay can see, not already in the model; those it cannot, with the experiment that can)."""
+    names = candidate_names(candidates)
+    if candidates is None:  # readings past a joint's limit point at its potentiometer (measurements.limit_warnings)
+        names += potentiometer_faults(sorted({j for t in trials for j in t.beyond_limit}))
+    unseen = [{"name": n, "reason": "replays follow the measured joint angles, which already contain it",
+               "experiment": "runs driven by the gait command (rc1 run), compared with the measured joint angles: "
+               "the servo channel"} for n in names if not LIBRARY[n].seen_in_replay]
+    in_model = [e.name for e in active(effects)]
+    return [n for n in names if LIBRARY[n].seen_in_replay and n not in in_model], unseen
+
+
+@dataclasses.dataclass
+class _Search:
+    """One diagnosis between rounds: today's linearized model, what every fit includes, what was accepted."""
+
+    lin: Linearization
+    evaluator: Evaluator
+    trials: list  # the campaign's chosen trials
+    replayed: List[str]  # the candidates
+    nuisance: List[str]  # the trials' start coordinates
+    free: List[str]  # the friction coefficients these data identify
+    model_names: List[str]  # in every fit: the starts, the free friction, then the accepted effects' coordinates
+    samples: int  # bootstrap replays per trial for the replay's own error
+    thresholds: Thresholds
+    waterfall: List[dict]
+    accepted: List[str] = dataclasses.field(default_factory=list)
+    rounds: List[Round] = dataclasses.field(default_factory=list)
+    stop_reason: str = ""
+
+    @classmethod
+    def begin(cls, lin, evaluator, trials, replayed, held, samples, thresholds) -> "_Search":
+        """The search at the start: the friction these data identify, the trials' starts fitted with it."""
+        nuisance = [c.name for c in lin.coordinates if c.owner == START]
+        free = screen_friction(lin, [n for n in FRICTION_NAMES if n not in held], nuisance=nuisance)
+        lin = starts_fitted(lin, nuisance, free, evaluator)
+        start = unrefitted(lin, "start (no refit)")
+        step = {"model": start.label, "effects": start.effects, "mean_eq6_error_pct": start.mean_eq6(),
+                "mean_eq6_without_replay_miss_pct": start.mean_eq6_without_miss(), "cases": start.by_case(trials)}
+        return cls(lin, evaluator, trials, replayed, nuisance, free, nuisance + list(free), samples, thresholds,
+                   waterfall=[step])
+
+    def label(self) -> str:
+        return "today's model" if not self.accepted else "+ " + " + ".join(self.accepted)
+
+    def round(self, index: int) -> bool:
+        """One round: rank the candidates against today's model, accept one if it holds. Whether to go on."""
+        if index and misfit(self.lin, self.lin.r0, len(physics_names(self.lin, self.model_names)),
+                            self.thresholds).consistent:
+            # What the accepted effects leave is noise: searching it only finds false alarms (measured: head drag
+            # accepted after a true toe, benchmarks/diagnosis.py).
+            self.stop_reason = "what the accepted effects leave is consistent with the noise"
+            return False
+        names, baseline, refit_note = self._baseline(first=index == 0)
+        results, checked, left = self._candidates_checked(names, baseline)
+        chosen, ambiguous, partial = decide(results, self.thresholds)
+        for c in results:
+            if c.status == "candidate":
+                c.status = "significant, not checked (a better candidate was)"
+        # The ranking: what simulation showed first (by its held-out gain), then the linear scores.
+        results.sort(key=lambda c: (c.simulated is None, -(c.simulated or {}).get("held_out_reduction", c.score)))
+        self.rounds.append(Round(friction=self.lin.friction, effects=dict(self.lin.effects), baseline=baseline,
+                                 candidates=results, accepted=chosen, misfit_p=left.p, refit=refit_note,
+                                 ambiguous=ambiguous, partial=partial))
+        if chosen is None:
+            self.stop_reason = ("candidates these trials cannot tell apart" if ambiguous else
+                                f"{partial} explains only part of it" if partial else "no candidate accepted")
+            return False
+        self._accept(*checked[chosen])
+        return True
+
+    def _baseline(self, first: bool) -> tuple:
+        """(the round's fitted names, today's model's held-out score, what happened to its parameters): refitted
+        and moved where simulation confirms it, else kept."""
+        lin, label = self.lin, self.label()
+        current = unrefitted(lin, label + " (no refit)")
+        if not physics_names(lin, self.model_names):
+            return self.model_names, current, "nothing to refit"
+        base_fit = fit(lin, self.model_names)
+        refit = held_out_by_simulation(lin, base_fit, self.evaluator, label + ", refitted")
+        if first:
+            self.waterfall.append(waterfall_step("today's model, friction refitted", refit, self.trials))
+        if refit.sum_of_squares >= current.sum_of_squares:
+            # The linear step of a nonlinear (Coulomb) model can overshoot: keep what simulation rejects out.
+            return self.nuisance, current, (f"kept: refitting {', '.join(self.model_names)} raised the held-out sum "
+                                            f"of squares from {current.sum_of_squares:.4g} to {refit.sum_of_squares:.4g}")
+        there = moved(lin, self.model_names, base_fit.values, self.evaluator)  # the refit on all trials
+        if lin.weighted_sum_of_squares(there.r0) < current.sum_of_squares:
+            self.lin = there
+            return self.model_names, refit, "refitted"
+        return self.model_names, refit, "refitted for the held-out check; kept where it was (the all-trial refit did worse)"
+
+    def _candidates_checked(self, names: List[str], baseline) -> tuple:
+        """(every candidate ranked, the best checked by simulation: name -> (result, score, fit, linearization),
+        today's model's misfit)."""
+        lin, evaluator, thresholds = self.lin, self.evaluator, self.thresholds
+        base_fit = fit(lin, names)
+        left = misfit(lin, base_fit.residual, len(physics_names(lin, names)), thresholds)
+        results = rank(lin, base_fit, names, [n for n in self.replayed if n not in self.accepted], thresholds=thresholds)
+        # Refine the most promising candidates by one secant step: replay every trial at the candidate's linear fit
+        # and update its columns (Broyden) there. A column taken at 0 misjudges effects seen at a clearly visible
+        # strength (measured: a 0.5 head drag fitted at the 0.8 trust bound, not significant, and a tilt accepted
+        # in its place); the refined fits decide.
+        refined = {}
+        for c in [c for c in results if c.status != "not detectable here"][:REFINED_CANDIDATES]:
+            own = names + [co.name for co in lin.coordinates if co.owner == c.name]
+            at = moved(lin, own, fit(lin, own).values, evaluator, what=f"refining {c.name}")
+            again = rank(at, fit(at, names), names, [c.name], reference=base_fit, thresholds=thresholds)[0]
+            again.visibility, again.indistinguishable_from = c.visibility, c.indistinguishable_from
+            refined[c.name] = (again, at)
+        results = sorted([refined[c.name][0] if c.name in refined else c for c in results], key=lambda c: -c.score)
+        checked = {}
+        for c in [c for c in results if c.status == "candidate" and c.name in refined][:CHECKED_CANDIDATES]:
+            at = refined[c.name][1]
+            cand_fit = fit(at, names + [co.name for co in at.coordinates if co.owner == c.name])
+            check = held_out_by_simulation(at, cand_fit, evaluator, f"{self.label()} + {c.name}")
+            c.simulated = {"held_out_sum_of_squares_before": baseline.sum_of_squares,
+                           "held_out_sum_of_squares_after": check.sum_of_squares,
+                           "held_out_reduction": 1.0 - check.sum_of_squares / baseline.sum_of_squares,
+                           "held_out_mean_eq6_pct_before": baseline.mean_eq6(),
+                           "held_out_mean_eq6_pct_after": check.mean_eq6()}
+            checked[c.name] = (c, check, cand_fit, at)
+        return results, checked, left
+
+    def _accept(self, c, check, cand_fit, at) -> None:
+        """Add candidate `c` to the model: its refined fit, where simulation puts it, estimated further there."""
+        self.accepted.append(c.name)
+        self.waterfall.append(waterfall_step("+ " + " + ".join(self.accepted) + " (held out)", check, self.trials))
+        self.model_names = list(dict.fromkeys(self.model_names + cand_fit.names))
+        # The accepted model: the refined fit, where its residuals are simulated (at the refinement's point plus
+        # the refit's step; that step is small, and the next round refits from there).
+        lin = moved(at, cand_fit.names, cand_fit.values, self.evaluator)
+        # The replay's own error depends on the model. Measured on 2 s joint-2 trials with a 0.5 head drag hidden:
+        # with the bias taken at no drag, the accepted true model missed a trial by 5 cm (noise 1.1) and was called
+        # unexplained; with the bias taken again here, its misfit is the noise's (p = 0.36).
+        lin = with_replay_error(lin, self.evaluator, self.samples)
+        accepted_at = {n: lin.coordinate(n).value for n in c.coordinates}
+        lin, steps = polish(lin, self.model_names, c.name, self.evaluator, self.samples)
+        here = fit(lin, self.model_names)  # the accepted effect's interval, the replay's error measured there
+        self.rounds[-1].polished = (f"{steps} Gauss-Newton step(s) from " + ", ".join(
+            f"{n}={v:.3g}" for n, v in accepted_at.items()) if steps else "no step: the accepted fit stands")
+        for n, se in zip(here.names, here.standard_errors, strict=True):
+            if n in c.coordinates:
+                value = lin.coordinate(n).value
+                c.coordinates[n] = [value, float(se)]
+                c.interval95[n] = interval95(value, float(se))
+        self.lin = lin
+
+    def finish(self, campaign) -> tuple:
+        """(the final model's compare report, where it fails, its Misfit from its replays (not the linear
+        guess), its coordinates' [value, standard error]). The model is the last one checked by simulation."""
+        lin = self.lin
+        final_fit = fit(lin, self.model_names)
+        out = self.evaluator.map(replay_and_score, [(t, lin.friction, lin.effects) for t in lin.trials],
+                                 "where the model fails")
+        report = CampaignReport(campaign=str(campaign.path), friction=lin.friction, trials=[o[0] for o in out],
+                                runs={t.trial_id: o[1] for t, o in zip(lin.trials, out, strict=True)})
+        simulated = [lin.corrected(k, trial_residual(t, report.runs[t.trial_id])) for k, t in enumerate(lin.trials)]
+        left = misfit(lin, simulated, len(physics_names(lin, self.model_names)), self.thresholds)
+        final: Dict[str, list] = {n: [float(lin.coordinate(n).value), float(se)]
+                                  for n, se in zip(final_fit.names, final_fit.standard_errors, strict=True)}
+        return report, where_it_fails(report, campaign).to_json(), left, final

@@ -1,0 +1,28 @@
+"""The thresholds a diagnosis decides by, in one place, each with its reason. A calibration passes its own
+(`diagnose(..., thresholds=Thresholds(...))`); the defaults are the ones the docs' rates were measured with."""
+
+import dataclasses
+
+
+@dataclasses.dataclass(frozen=True)
+class Thresholds:
+    # Wald test of a candidate's parameters against 0 (their nested value): |z| > 3 for one parameter.
+    p_accept: float = 2.7e-3
+    # A candidate "helps" when the simulated held-out error falls by this fraction.
+    min_held_out_reduction: float = 0.10
+    # An accepted effect at least halves the simulated held-out error: on 3 x 2 s campaigns the true effects
+    # removed 53-81%, and 6 of 8 wrong effects accepted in a true one's place 17-49% (docs/diagnosis.md).
+    accept_held_out_reduction: float = 0.5
+    # A rival leaving less than this multiple of the best one's simulated held-out sum of squares explains the
+    # data alike: a true toe or lateral asymmetry left 1.7-2x less than its best rival, wrong pairs 1.04-1.08x.
+    ambiguous_ratio: float = 1.5
+    # Candidates whose columns, the model's projected out, are this parallel cannot be told apart by the data.
+    indistinguishable_cos: float = 0.95
+    # The final positions' misfit is "consistent with the noise" above this p-value; a trial is an outlier
+    # on its own below it divided by the number of trials.
+    p_misfit: float = 1e-3
+    # More outlying trials than this fraction: the misfit is the campaign's, not theirs.
+    max_outlier_fraction: float = 0.1
+
+
+THRESHOLDS = Thresholds()
