@@ -61,6 +61,21 @@ def _float(text: str) -> float:
 def make_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="rc1", description="Simulate the RC1 wheeled snake robot (Drake).")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    for add in (_add_run, _add_synthesize, _add_compare, _add_sweep, _add_identify, _add_compensate, _add_effects,
+                _add_diagnose):
+        add(sub)
+    # Every simulating command picks its engine.
+    for name, command in sub.choices.items():
+        if name == "effects":
+            continue
+        default = "drake" if name == "run" else "compiled"
+        command.add_argument("--engine", choices=ENGINES, default=default,
+                             help=f"drake (the Diagram, the model of record) or compiled (its numba twin; "
+                                  f"tests/test_engine.py) (default: {default})")
+    return parser
+
+
+def _add_run(sub) -> None:
     run = sub.add_parser("run", help="simulate one scenario: summary, JSON, plot")
     run.add_argument("--scenario", default="nominal", help="scenario name (default: nominal)")
     run.add_argument("--scenarios-file", type=Path, default=DEFAULT_SCENARIOS,
@@ -81,6 +96,8 @@ def make_parser() -> argparse.ArgumentParser:
     run.add_argument("--animate", type=_html_path, metavar="PATH.html",
                      help="write a standalone HTML animation of the run (Meshcat, plays offline in a browser)")
 
+
+def _add_synthesize(sub) -> None:
     syn = sub.add_parser("synthesize", help="write a synthetic campaign in the measurement format")
     syn.add_argument("out", type=Path, help="campaign folder to create (must not exist)")
     syn.add_argument("--design", choices=["paper", "identification"], default="paper",
@@ -106,6 +123,8 @@ def make_parser() -> argparse.ArgumentParser:
     syn.add_argument("--seed", type=int, default=0)
     syn.add_argument("--truth", type=Path, metavar="PATH", help="where to record the truth (JSON)")
 
+
+def _add_compare(sub) -> None:
     cmp = sub.add_parser("compare", help="replay a campaign through the model and score it (Eq. 6, Table 2)")
     cmp.add_argument("campaign", type=Path, help="campaign folder (data/README.md)")
     cmp.add_argument("--friction", type=_friction_override, action="append", default=[], metavar="NAME=VALUE",
@@ -119,6 +138,8 @@ def make_parser() -> argparse.ArgumentParser:
     _add_start_rates(cmp, default="rest", fit="to its first 0.5 s of camera path and IMU")
     cmp.add_argument("--workers", type=_positive_int, metavar="N", help="processes (default: every core)")
 
+
+def _add_sweep(sub) -> None:
     swp = sub.add_parser("sweep", help="fail each joint in turn (and none), several trials each")
     swp.add_argument("--out", type=Path, required=True, metavar="DIR",
                      help="results folder: results.jsonl streams a row per run; rerunning resumes")
@@ -140,6 +161,8 @@ def make_parser() -> argparse.ArgumentParser:
     swp.add_argument("--workers", type=_positive_int, metavar="N", help="local processes (default: every core)")
     swp.add_argument("--scheduler", metavar="ADDRESS", help="a Dask scheduler, e.g. tcp://10.0.0.5:8786")
 
+
+def _add_identify(sub) -> None:
     idn = sub.add_parser("identify", help="identify the five friction coefficients from a campaign")
     idn.add_argument("campaign", type=Path)
     idn.add_argument("--method", choices=("avs", "program", "equation-error"), default="avs",
@@ -165,6 +188,8 @@ def make_parser() -> argparse.ArgumentParser:
                                               "at the start model, and held through the fit")
     _add_outputs(idn, out_help="write a model file: the identified coefficients and the (fixed) effects")
 
+
+def _add_compensate(sub) -> None:
     cmpn = sub.add_parser("compensate", help="bias, heading feedback and reverse driving for failed joints")
     cmpn.add_argument("--joints", type=_joint_list, default=list(range(1, 14)), metavar="LIST",
                       help="failed joints to compensate, e.g. 2,7,13 (default 1-13)")
@@ -173,8 +198,12 @@ def make_parser() -> argparse.ArgumentParser:
     cmpn.add_argument("--workers", type=_positive_int, metavar="N", help="local processes (default: every core)")
     cmpn.add_argument("--scheduler", metavar="ADDRESS", help="a Dask scheduler")
 
+
+def _add_effects(sub) -> None:
     sub.add_parser("effects", help="list the candidate physical effects and their parameters")
 
+
+def _add_diagnose(sub) -> None:
     dgn = sub.add_parser("diagnose", help="find the missing physics: fit, where it fails, rank candidate effects, "
                                           "accept what holds on held-out trials, repeat")
     dgn.add_argument("campaign", type=Path)
@@ -197,15 +226,6 @@ def make_parser() -> argparse.ArgumentParser:
                                               "every fit: for data whose start follows no known convention")
     _add_outputs(dgn, out_help="write the diagnosed model (friction and accepted effects; default "
                                "out/<campaign>.model.yaml)")
-    # Every simulating command picks its engine.
-    for name, command in sub.choices.items():
-        if name == "effects":
-            continue
-        default = "drake" if name == "run" else "compiled"
-        command.add_argument("--engine", choices=ENGINES, default=default,
-                             help=f"drake (the Diagram, the model of record) or compiled (its numba twin; "
-                                  f"tests/test_engine.py) (default: {default})")
-    return parser
 
 
 def _add_start_rates(parser, *, default: str, fit: str) -> None:
