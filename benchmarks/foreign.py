@@ -36,7 +36,9 @@ from rc1_drake.compare import compare_campaign, simulator_error
 from rc1_drake.config import FRICTION_NAMES, Failure, Friction, Scenario, Start, Stop
 from rc1_drake.executor import make_executor
 from rc1_drake.gait import serpenoid
-from rc1_drake.identify import CampaignResiduals, fit_program, screen, uncertainty
+from rc1_drake.identify import fit_program, screen
+from rc1_drake.sysid.objective import CampaignResiduals
+from rc1_drake.sysid.stats import uncertainty
 from rc1_drake.sysid.parameters import PAPER_MANUAL
 from rc1_drake.measurements import load_campaign
 from rc1_drake.synthesize import IDENTIFICATION_DESIGN, synthesize_campaign

@@ -28,7 +28,11 @@ import numpy as np
 
 from rc1_drake.config import FRICTION_NAMES, Friction, Gait, Stop
 from rc1_drake.executor import make_executor
-from rc1_drake.identify import INPUT_NOISE_SAMPLES, CampaignResiduals, Eq6Objective, _replay_residual, avs, fit_program, screen, uncertainty
+from rc1_drake.identify import Eq6Objective, avs, fit_program, screen
+from rc1_drake.sysid.input_noise import INPUT_NOISE_SAMPLES
+from rc1_drake.sysid.objective import CampaignResiduals
+from rc1_drake.sysid.residual import replay_residual
+from rc1_drake.sysid.stats import uncertainty
 from rc1_drake.sysid.parameters import PAPER_MANUAL
 from rc1_drake.measurements import load_campaign
 from rc1_drake.synthesize import IDENTIFICATION_DESIGN, Case, synthesize_campaign
@@ -59,7 +63,7 @@ def design_study(args, executor, workdir):
                              input_noise_samples=args.input_noise_samples)
         cells = "".join(f"{(100 * se / v if se != float('inf') else float('inf')):>9.0f}{'*' if ok else ' '}"
                         for v, se, ok in zip(spread.values, spread.standard_errors, spread.identifiable, strict=True))
-        worst = max(float(np.sqrt(np.mean(_replay_residual(t, Friction()) ** 2))) for t in trials)
+        worst = max(float(np.sqrt(np.mean(replay_residual(t, Friction()) ** 2))) for t in trials)
         print(f"{name:45}{cells}{worst:>11.2f}{spread.simulations:>6}"
               f"{time.perf_counter() - start:>8.0f}", flush=True)
         # Standard errors fall as 1/sqrt(data): trial-seconds of this design that a 10% error would need.

@@ -140,7 +140,8 @@ def batch(args) -> list:
 
 
 def identification(args) -> list:
-    from rc1_drake.identify import CampaignResiduals, Eq6Objective, avs, fit_program, identify_equation_error, screen
+    from rc1_drake.identify import Eq6Objective, avs, fit_program, identify_equation_error, screen
+    from rc1_drake.sysid.objective import CampaignResiduals
     from rc1_drake.sysid.parameters import PAPER_MANUAL
     from rc1_drake.measurements import load_campaign
     from rc1_drake.synthesize import IDENTIFICATION_DESIGN, synthesize_campaign

@@ -9,7 +9,7 @@ import pytest
 
 from rc1_drake.cli import main
 from rc1_drake.config import Friction, Gait, Numerics, Scenario, Stop
-from rc1_drake.equation_error import WHEEL_NAMES, InverseDynamics, TrajectorySamples, _projected, _solve
+from rc1_drake.identify.equation_error import WHEEL_NAMES, InverseDynamics, TrajectorySamples, _projected, _solve
 from rc1_drake.protocol import simulate
 from rc1_drake.synthesize import Case, synthesize_campaign
 

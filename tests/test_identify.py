@@ -49,7 +49,7 @@ def test_frozen_coefficients_stay(campaign):
 def test_fixed_effects_stay_in_every_evaluation_of_a_fit(campaign):
     """A model's fixed effects (from a model file) stay in the residuals when a fit or the uncertainty
     passes the effect parameters it varies (none, or others): they are set over the fixed ones."""
-    from rc1_drake.identify import CampaignResiduals
+    from rc1_drake.sysid.objective import CampaignResiduals
 
     with_toe = CampaignResiduals(campaign.trials, effects={"wheel_toe_deg": 2.0})
     fixed = with_toe(Friction())
@@ -89,7 +89,8 @@ def test_identify_command_writes_the_friction_file_that_run_reads(campaign, tmp_
 
 
 def test_uncertainty_flags_what_the_trials_cannot_identify(tmp_path):
-    from rc1_drake.identify import CampaignResiduals, uncertainty
+    from rc1_drake.sysid.objective import CampaignResiduals
+    from rc1_drake.sysid.stats import uncertainty
 
     folder = tmp_path / "c"
     synthesize_campaign(folder, design=[Case([], 1), Case([7], 1)], seed=8,
@@ -133,7 +134,9 @@ def test_program_fit_recovers_what_the_trials_identify_and_holds_the_rest(tmp_pa
     mu_lat's interval passes the 30% bar: the angle noise a kinematic replay passes on, docs/findings.md.) And at
     one gait speed the rolling resistance's Coulomb and viscous parts are one direction of the data."""
     from rc1_drake.config import Gait
-    from rc1_drake.identify import CampaignResiduals, identify_program, uncertainty
+    from rc1_drake.identify import identify_program
+    from rc1_drake.sysid.objective import CampaignResiduals
+    from rc1_drake.sysid.stats import uncertainty
     from rc1_drake.sysid.parameters import DEFAULT_PARAMETERS
 
     folder = tmp_path / "c"
@@ -187,7 +190,9 @@ def test_an_effect_parameter_is_fitted_beside_the_friction(tmp_path):
     a replay of noise-free angles ends within ~1 mm of the truth, and 0.1 deg of toe moves it ~3 mm.
     (With the sensor noise of data/README.md the estimates scatter by ~0.3 deg over seeds while the
     reported standard error is ~0.07: the potentiometer noise the replay follows is not in it yet.)"""
-    from rc1_drake.identify import CampaignResiduals, fit_program, uncertainty
+    from rc1_drake.identify import fit_program
+    from rc1_drake.sysid.objective import CampaignResiduals
+    from rc1_drake.sysid.stats import uncertainty
     from rc1_drake.sysid.parameters import effect_parameters
     from rc1_drake.synthesize import Noise
 
@@ -208,7 +213,9 @@ def test_input_noise_widens_the_intervals_to_cover_the_scatter(tmp_path):
     """With sensor noise, a 1 deg wheel toe fitted from one 3 s trial lands several output-noise standard
     errors away (the replay follows noisy potentiometer angles); resampling that input noise through
     the replay widens the interval until it covers the truth."""
-    from rc1_drake.identify import CampaignResiduals, fit_program, uncertainty
+    from rc1_drake.identify import fit_program
+    from rc1_drake.sysid.objective import CampaignResiduals
+    from rc1_drake.sysid.stats import uncertainty
     from rc1_drake.sysid.parameters import effect_parameters
 
     folder = tmp_path / "c"
@@ -230,7 +237,8 @@ def test_input_noise_widens_the_intervals_to_cover_the_scatter(tmp_path):
 def test_exact_residual_jacobian_matches_finite_differences(campaign):
     """The program fit's Jacobian from the replays' exact sensitivities (one replay per trial) against central
     differences of the residuals (two replays per parameter), friction and effect parameters alike."""
-    from rc1_drake.identify import CampaignResiduals, exact_jacobian_available
+    from rc1_drake.sysid.objective import CampaignResiduals
+    from rc1_drake.sysid.residual import exact_jacobian_available
 
     names = ["mu_lat", "c_long", "wheel_toe_deg", "lateral_friction_asymmetry"]
     assert exact_jacobian_available(names)

@@ -7,6 +7,7 @@ from pydrake.solvers import MathematicalProgram, SnoptSolver
 
 from ..config import Rc1Error
 
+
 def bounded_step(jac, r, damping, lower, upper):
     """The Levenberg-Marquardt step as a Drake MathematicalProgram solved by SNOPT:
     min |r + J d|^2 + damping |d|^2 subject to lower <= d <= upper."""

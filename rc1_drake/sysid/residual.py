@@ -5,8 +5,11 @@ that its Jacobian gives a Fisher information.
 
 import numpy as np
 
-from ..config import RESIDUAL_SIGMAS
+from ..config import RESIDUAL_SIGMAS, Friction
 from ..effects import sensor_model
+from ..engine import default_engine
+from ..engine.session import sensitivity_parameters
+from .evaluate import replay, replayer
 
 RESIDUAL_PERIOD_S = 0.1  # s between a path's residuals, whatever the sampling rate
 FINAL_CHANNEL, PATH_CHANNEL = 0, 1  # the final position (by hand); the camera path or yaw rate over time
@@ -51,3 +54,21 @@ def residual_jacobian(trial, run, residual) -> np.ndarray:
     """d trial_residual / d parameter (one column per run.sensitivity_names) of a run with sensitivities: exact,
     the residuals being linear in the logged states (Run.residual_jacobian)."""
     return run.residual_jacobian(lambda moved: trial_residual(trial, moved), residual)
+
+
+def replay_residual(trial, friction: Friction, effects=None) -> np.ndarray:
+    return trial_residual(trial, replay(trial, friction, effects))
+
+
+def replay_residual_and_jacobian(trial, friction: Friction, effects, names) -> tuple:
+    """One trial's residuals and their derivatives by the parameters `names` from one replay with exact
+    sensitivities (engine/tangent.py)."""
+    run = replayer(trial).run(friction, effects, sensitivities=names)
+    r = trial_residual(trial, run)
+    return r, residual_jacobian(trial, run, r)
+
+
+def exact_jacobian_available(names) -> bool:
+    """Whether replays can give the residuals' derivatives by `names` exactly (the compiled engine's
+    sensitivities), in place of finite-difference columns."""
+    return default_engine() == "compiled" and all(n in sensitivity_parameters() for n in names)

@@ -1,8 +1,17 @@
-"""Statistics of a least-squares fit of standardized residuals."""
+"""Statistics of a least-squares fit of standardized residuals: each channel's variance, and the parameters'
+standard errors and correlations by the sandwich with the replays' input noise (uncertainty)."""
+
+import dataclasses
+import math
+from typing import List
 
 import numpy as np
 
+from ..config import Z95, Friction
+from .input_noise import INPUT_NOISE_SAMPLES
+from .parameters import DEFAULT_PARAMETERS, difference_step, parameter_value, with_values
 from .residual import FINAL_CHANNEL
+
 
 def channel_variances(r, channels, num_parameters: int) -> np.ndarray:
     """Per residual, its channel's variance in standardized units. The residuals are scaled by stated
@@ -20,3 +29,78 @@ def channel_variances(r, channels, num_parameters: int) -> np.ndarray:
         estimate = float(r[mine] @ r[mine]) / dof
         variance[mine] = max(estimate, 1.0) if c == FINAL_CHANNEL else estimate
     return variance
+
+
+@dataclasses.dataclass
+class Uncertainty:
+    names: List[str]
+    values: List[float]
+    standard_errors: List[float]  # inf where the data do not constrain the coefficient
+    correlation: List[List[float]]
+    sensitivities: List[float]  # |change of the standardized residuals| for a 1% change (uncertainty())
+    identifiable: List[bool]
+    residual_rms: float  # of the standardized residuals
+    simulations: int
+
+    def warnings(self) -> List[str]:
+        return [f"{n}: not identifiable from these trials (relative standard error "
+                f"{'inf' if not math.isfinite(se) else f'{100 * se / max(abs(v), 1e-12):.0f}%'}); its value is the "
+                f"start value, not a fit" for n, v, se, ok in zip(self.names, self.values, self.standard_errors,
+                                                                  self.identifiable, strict=True) if not ok]
+
+    def table(self) -> str:
+        lines = [f"{'coefficient':<12}{'value':>10}{'std. error':>12}{'95% interval':>24}{'sensitivity':>13}  identifiable"]
+        for n, v, se, s, ok in zip(self.names, self.values, self.standard_errors, self.sensitivities,
+                                   self.identifiable, strict=True):
+            ci = "-" if not math.isfinite(se) else f"[{v - Z95 * se:.4g}, {v + Z95 * se:.4g}]"
+            lines.append(f"{n:<12}{v:>10.4g}{(f'{se:.3g}' if math.isfinite(se) else 'inf'):>12}{ci:>24}{s:>13.3g}  "
+                         f"{'yes' if ok else 'NO'}")
+        return "\n".join(lines)
+
+
+def uncertainty(residuals, friction: Friction, *, parameters=None, relative_step=0.05,
+                max_relative_error=0.3, effects=None, input_noise_samples: int = INPUT_NOISE_SAMPLES) -> Uncertainty:
+    """Standard errors and correlations of the free parameters from the residual Jacobian at
+    (`friction`, `effects`): the sandwich (J^T J)^-1 J^T S J (J^T J)^-1 of least squares with S the
+    residual variance of each channel (channel_variances), plus, with `input_noise_samples`, the
+    covariance that the angle noise in the replays' input causes (CampaignResiduals.input_noise: that
+    many more replays per trial; INPUT_NOISE_SAMPLES by default, 0 leaves it out and understates the
+    intervals several times over, docs/identification.md); a parameter is identifiable when its relative standard error
+    is below `max_relative_error`. Costs one residual evaluation per free parameter, plus one.
+
+    The Jacobian is taken in the parameters' own units (forward differences of 5% of the value, at least
+    0.5% of the bounds' range for a coefficient, 2% of the range for an effect parameter), not in their
+    logarithm: at a coefficient near zero a log-scale column vanishes, and with it the correlation that
+    should widen the other coefficients' intervals. Sensitivities are per 1% of a coefficient's value
+    (of the range where it is 0, and for effect parameters)."""
+    free = [p for p in (parameters or DEFAULT_PARAMETERS) if not p.frozen]
+    start_sims = getattr(residuals, "simulations", 0)
+    r0 = residuals(friction, effects)
+    columns, per_percent = [], []
+    for p in free:
+        value, span = parameter_value(p.name, friction, effects), p.upper - p.lower
+        h = difference_step(p, value, relative_step)
+        step = h if value + h <= p.upper else -h
+        columns.append((residuals(*with_values(friction, effects, {p.name: value + step})) - r0) / step)
+        per_percent.append(0.01 * (abs(value) if p.is_friction and value > 0 else span))
+    jac = np.column_stack(columns)
+    m, n = jac.shape
+    variance = channel_variances(r0, getattr(residuals, "channels", None), n)
+    u, sv, vt = np.linalg.svd(jac, full_matrices=False)
+    keep = sv > 1e-9 * max(sv.max(), 1e-300)
+    inv = (vt[keep].T / sv[keep] ** 2) @ vt[keep]  # (J^T J)^-1 on the identifiable subspace
+    spread = np.diag(variance)
+    if input_noise_samples and hasattr(residuals, "input_noise"):
+        spread = spread + residuals.input_noise(friction, effects, samples=input_noise_samples)
+    cov = inv @ jac.T @ spread @ jac @ inv  # the least-squares estimate's covariance (sandwich)
+    values = [parameter_value(p.name, friction, effects) for p in free]
+    null = np.abs(vt[~keep]).max(axis=0) > 1e-6 if (~keep).any() else np.zeros(n, dtype=bool)
+    se = [math.inf if null[i] else float(math.sqrt(max(cov[i, i], 0.0))) for i in range(n)]
+    d = np.sqrt(np.clip(np.diag(cov), 1e-300, None))
+    corr = np.where(np.outer(d, d) > 0, cov / np.outer(d, d), 0.0)
+    identifiable = [math.isfinite(s) and s < max_relative_error * abs(v) for s, v in zip(se, values, strict=True)]
+    return Uncertainty(names=[p.name for p in free], values=values, standard_errors=se,
+                       correlation=np.round(corr, 4).tolist(),
+                       sensitivities=[float(np.linalg.norm(c)) * k for c, k in zip(columns, per_percent, strict=True)],
+                       identifiable=identifiable, residual_rms=float(np.sqrt(np.mean(r0**2))),
+                       simulations=getattr(residuals, "simulations", 0) - start_sims)

@@ -50,9 +50,9 @@ from typing import Dict, List, Optional
 
 import numpy as np
 
-from .config import NUM_JOINTS, Z95, Friction, Rc1Error
-from .smoothing import smoothing_spline
-from .sysid.parameters import DEFAULT_PARAMETERS
+from ..config import NUM_JOINTS, Z95, Friction, Rc1Error
+from ..smoothing import smoothing_spline
+from ..sysid.parameters import DEFAULT_PARAMETERS
 
 # The four wheel coefficients the base rows see, in this column order.
 WHEEL_NAMES = ("mu_lat", "mu_long", "c_lat", "c_long")
@@ -127,7 +127,7 @@ def trajectory_samples(trial, *, trim_s: float = TRIM_S, rng=None, extra_noise=N
 
 def _wheel_toe_only(effects: Dict[str, float]) -> float:
     """The wheel toe (rad): the one effect these rows model; any other is refused, not ignored."""
-    from .effects import active, model_setup
+    from ..effects import active, model_setup
 
     others = [e.name for e in active(effects) if e.name != "wheel_toe"]
     if others:
@@ -141,8 +141,8 @@ class InverseDynamics:
     def __init__(self, sgn_smoothing_m_s: float = 1e-3, effects: Optional[Dict[str, float]] = None):
         from pydrake.systems.framework import DiagramBuilder
 
-        from .friction import GRAVITY_M_S2
-        from .model import add_rc1_plant
+        from ..friction import GRAVITY_M_S2
+        from ..model import add_rc1_plant
 
         self.rc1 = add_rc1_plant(DiagramBuilder(), time_step=5e-4)  # the step does not enter M or C
         self.plant = self.rc1.plant
@@ -156,8 +156,8 @@ class InverseDynamics:
         """Per sample k the base rows A[k] theta = b[k] (theta = WHEEL_NAMES; yaw row divided by
         YAW_ROW_M), each wheel's slip u_long, u_lat, and the base-row direction g_long, g_lat along
         which that wheel's force acts (so that an unknown force can be projected out)."""
-        from .friction import smooth_sign
-        from .kinematics import wheel_kinematics_kernel
+        from ..friction import smooth_sign
+        from ..kinematics import wheel_kinematics_kernel
 
         jp, jc, module, offset, _ = self.rc1.geometry.arrays
         n, w = len(samples.t), len(self.normal)
@@ -301,7 +301,7 @@ def fit_equation_error(trials, *, start: Friction, parameters=None, sgn_smoothin
     working-joint trials among `trials` (module docstring). `noise` (a synthesize.Noise; default: the
     sensors of data/README.md): its camera and potentiometer deviations are added once more to measure
     the slip noise (for the gate) and the noise bias (SIMEX)."""
-    from .synthesize import Noise
+    from ..synthesize import Noise
 
     noise = noise or Noise()
     extra_noise = (noise.camera_m, math.radians(noise.camera_yaw_deg), math.radians(noise.potentiometer_deg))

@@ -1,0 +1,51 @@
+"""The objective of a least-squares fit: the stacked standardized residuals of a campaign's replays at a model,
+their exact Jacobian where the compiled engine gives sensitivities, and the input noise's covariance."""
+
+import numpy as np
+from scipy.linalg import block_diag
+
+from ..config import Friction
+from .evaluate import map_trials
+from .input_noise import INPUT_NOISE_SAMPLES, input_noise_covariance
+from .parameters import with_fixed
+from .residual import replay_residual, replay_residual_and_jacobian, residual_channels
+
+
+class CampaignResiduals:
+    """The stacked standardized residuals of the trials for a friction set (and effect parameters, set
+    over the fixed `effects` given here); counts simulations."""
+
+    def __init__(self, trials, *, executor=None, effects=None):
+        self.trials, self.executor, self.effects = list(trials), executor, effects
+        self.simulations = 0
+
+    def __call__(self, friction: Friction, effects=None) -> np.ndarray:
+        parts = map_trials(replay_residual, self.trials, friction, with_fixed(self.effects, effects), self.executor)
+        self.simulations += len(self.trials)
+        self.channels = np.concatenate([residual_channels(p) for p in parts])
+        return np.concatenate(parts)
+
+    def with_jacobian(self, friction: Friction, effects, names) -> tuple:
+        """(the stacked residuals, their derivatives by the parameters `names`) from one replay per trial
+        (exact_jacobian_available(names) must hold)."""
+        jobs = [(t, friction, with_fixed(self.effects, effects), tuple(names)) for t in self.trials]
+        if self.executor is None:
+            parts = [replay_residual_and_jacobian(*job) for job in jobs]
+        else:
+            parts = [f.result() for f in [self.executor.submit(replay_residual_and_jacobian, *job) for job in jobs]]
+        self.simulations += len(self.trials)
+        self.channels = np.concatenate([residual_channels(r) for r, _ in parts])
+        return np.concatenate([r for r, _ in parts]), np.vstack([j for _, j in parts])
+
+    def input_noise(self, friction: Friction, effects=None, *, samples: int = INPUT_NOISE_SAMPLES,
+                    seed: int = 0) -> np.ndarray:
+        """Block-diagonal covariance of the stacked residuals that the angle noise in the replays' input
+        causes, from `samples` resampled replays per trial (plus one unperturbed)."""
+        jobs = [(t, friction, with_fixed(self.effects, effects), samples, seed + k)
+                for k, t in enumerate(self.trials)]
+        if self.executor is None:
+            blocks = [input_noise_covariance(*job) for job in jobs]
+        else:
+            blocks = [f.result() for f in [self.executor.submit(input_noise_covariance, *job) for job in jobs]]
+        self.simulations += (samples + 1) * len(self.trials)
+        return block_diag(*blocks)
