@@ -11,11 +11,22 @@ import tempfile
 import time
 from pathlib import Path
 
-from .config import FAILURE_MODES, FRICTION_NAMES, START_MODES, TRUTH_MODELS, Failure, Friction, Rc1Error, Scenario, Stop
-from .scenarios import DEFAULT_SCENARIOS, ModelFile, load_model_file, load_scenario, model_to_yaml, validate
+from .config import (
+    FAILURE_MODES,
+    FRICTION_NAMES,
+    START_MODES,
+    TRUTH_MODELS,
+    Failure,
+    Friction,
+    Rc1Error,
+    Scenario,
+    Stop,
+)
 from .diagnose import INPUT_NOISE_SAMPLES as DIAGNOSE_NOISE_SAMPLES
 from .engine import ENGINES, make_session, use_engine
 from .identify import INPUT_NOISE_SAMPLES
+from .scenarios import DEFAULT_SCENARIOS, ModelFile, load_model_file, load_scenario, model_to_yaml, validate
+from .sysid.evaluate import Checkpoint
 
 
 class _Parser(argparse.ArgumentParser):
@@ -219,6 +230,9 @@ def _add_diagnose(sub) -> None:
     dgn.add_argument("--input-noise-samples", type=_positive_int, default=DIAGNOSE_NOISE_SAMPLES, metavar="K",
                      help="noisy replays of each trial's noise-free twin, for the replay's own miss and its input "
                           f"noise (default {DIAGNOSE_NOISE_SAMPLES})")
+    dgn.add_argument("--checkpoint", type=Path, metavar="DIR",
+                     help="keep every replay's result here as it arrives, so that an interrupted diagnosis run again "
+                          "resumes where it stopped (default: out/checkpoints/<campaign>; removed when it finishes)")
     dgn.add_argument("--no-probe-study", action="store_true",
                      help="do not simulate short probe trials to name the experiment that would see an effect "
                           "not detectable here")
@@ -463,8 +477,15 @@ def cmd_sweep(args) -> int:
 
     from .executor import make_executor
     from .plots import paths_grid_figure, sweep_figure
-    from .sweep import (double_failure_sets, format_table, half_summary, make_jobs, run_sweep,
-                        single_failure_sets, summarize_sweep)
+    from .sweep import (
+        double_failure_sets,
+        format_table,
+        half_summary,
+        make_jobs,
+        run_sweep,
+        single_failure_sets,
+        summarize_sweep,
+    )
 
     if args.double:
         sets = ([[]] if not args.no_nominal else []) + double_failure_sets(args.joints, mode=args.mode)
@@ -503,85 +524,28 @@ def cmd_sweep(args) -> int:
 def cmd_identify(args) -> int:
     import matplotlib.pyplot as plt
 
-    from .identify import (avs_figure, friction_to_yaml, held_out_errors, identify_avs, identify_equation_error,
-                           identify_program, seeded_start, split_trials)
-    from .sysid.parameters import DEFAULT_PARAMETERS, PAPER_MANUAL
-    from .replay import fit_starts
-    from .start import START_NAMES
+    from .identify import avs_figure, friction_to_yaml, identify
 
     def ids(text):
         return None if not text else [t.strip() for t in text.split(",") if t.strip()]
 
-    campaign = loaded_campaign(args.campaign)
-    trials = ids(args.trials)
-    split_trials(campaign, trials=trials, validation=ids(args.validation))  # a bad id stops here, before any work
-    parameters = [dataclasses.replace(p, frozen=p.name in args.freeze) for p in DEFAULT_PARAMETERS]
-    start_model = load_model_file(args.start) if args.start else ModelFile(friction=PAPER_MANUAL)
-    start_friction, effects = start_model.friction, start_model.effects or None  # the effects stay fixed
-    record = {}
-    if args.start_rates == "fit":
-        campaign = fit_starts(campaign, friction=start_friction, effects=effects, workers=args.workers,
-                              scheduler=args.scheduler)
-        record["starts"] = {t.trial_id: dict(zip(START_NAMES, map(float, t.initial_head_rates), strict=True))
-                            for t in campaign.trials}
-    estimation, validation = split_trials(campaign, trials=trials, validation=ids(args.validation))
-
     def progress(done, total, name, error):
         print(f"  iteration {done}/{total}: {name}, mean Eq. 6 error {error:.2f}%", file=sys.stderr, flush=True)
 
-    start = time.perf_counter()
-    spread, warnings = None, []
-    if args.method == "avs":
-        result, spread = identify_avs(campaign, trials=trials, iterations=args.iterations, workers=args.workers,
-                                      scheduler=args.scheduler, parameters=parameters, progress=progress,
-                                      start=start_friction, effects=effects,
-                                      input_noise_samples=args.input_noise_samples)
-        print("Friction identification by AVS (paper Table 1; * = the coefficient each iteration varied):")
-        print(result.table())
-    elif args.method == "program":
-        if not args.start and effects is None:
-            start_friction, seed = seeded_start(campaign, trials=trials, start=start_friction, parameters=parameters)
-            if seed is not None:
-                used = [n for n, ok in zip(seed.names, seed.identifiable, strict=True) if ok]
-                print(f"start: equation error identified {', '.join(used) or 'nothing'} "
-                      f"({seed.wall_time_s:.0f} s, no simulation); the rest from the paper's manual values")
-                record["equation_error_start"] = seed.to_json()
-        result, spread = identify_program(campaign, trials=trials, workers=args.workers, scheduler=args.scheduler,
-                                          parameters=parameters, max_iterations=args.iterations, start=start_friction,
-                                          effects=effects, input_noise_samples=args.input_noise_samples)
-        print(f"Friction identification by least squares ({result.iterations} iterations, cost "
-              f"{result.cost_start:.1f} -> {result.cost:.1f}):")
-    else:
-        result = identify_equation_error(campaign, trials=trials, start=start_friction, parameters=parameters,
-                                         effects=effects)
-        print(f"Friction identification by equation error (inverse dynamics, {result.wall_time_s:.0f} s, no simulation):")
-        print(result.table())
-        warnings = result.warnings()
-    fit_simulations = result.simulations + (spread.simulations if spread else 0)
-    if spread is not None:
-        print()
-        print(f"Uncertainty at the result (residual Jacobian; standardized residual RMS {spread.residual_rms:.2f}):")
-        print(spread.table())
-        warnings = spread.warnings()
-        if args.method == "program" and result.held:
-            warnings.append(f"held at the start values (not identifiable at the start): {', '.join(result.held)}")
-    for warning in warnings:
-        print(f"warning: {warning}")
-    fit_wall = time.perf_counter() - start
-    held = held_out_errors(estimation, validation, result.friction, workers=args.workers, scheduler=args.scheduler,
-                           effects=effects)
-    print(held.line())
-    print(f"fit: {fit_simulations} simulations, {fit_wall:.0f} s; errors: {held.simulations} more simulations")
+    campaign = loaded_campaign(args.campaign)
+    result = identify(campaign, method=args.method, trials=ids(args.trials), validation=ids(args.validation),
+                      start=load_model_file(args.start) if args.start else None, freeze=args.freeze,
+                      start_rates=args.start_rates, iterations=args.iterations,
+                      input_noise_samples=args.input_noise_samples, workers=args.workers, scheduler=args.scheduler,
+                      progress=progress)
+    print(result.format())
     if args.json:
-        record.update(result.to_json())
-        record.update({"uncertainty": dataclasses.asdict(spread) if spread else None, "warnings": warnings,
-                       "simulations": fit_simulations, "wall_time_s": fit_wall,
-                       "held_out": dataclasses.asdict(held)})
-        _write_atomically(args.json, lambda p: p.write_text(json.dumps(record, indent=2, default=float) + "\n"))
+        _write_atomically(args.json, lambda p: p.write_text(json.dumps(result.to_json(), indent=2, default=float)
+                                                            + "\n"))
     if args.out:
-        _write_atomically(args.out, lambda p: p.write_text(friction_to_yaml(result.friction, effects)))
+        _write_atomically(args.out, lambda p: p.write_text(friction_to_yaml(result.friction, result.effects)))
     if args.plots and args.method == "avs":
-        fig = avs_figure(result)
+        fig = avs_figure(result.result)
         _write_atomically(args.plots / "avs_iterations.png", lambda p: fig.savefig(p, format="png", dpi=110))
         plt.close(fig)
     return 0
@@ -628,6 +592,7 @@ def cmd_diagnose(args) -> int:
     model = load_model_file(args.model_file) if args.model_file else ModelFile(friction=Friction())
     trials = None if not args.trials else [t.strip() for t in args.trials.split(",") if t.strip()]
     started = time.perf_counter()
+    checkpoint = args.checkpoint or Path("out") / "checkpoints" / Path(campaign.path).name
 
     def progress(text):
         print(f"  [{time.perf_counter() - started:5.0f} s] {text}", file=sys.stderr, flush=True)
@@ -635,12 +600,14 @@ def cmd_diagnose(args) -> int:
     result = diagnose(campaign, friction=model.friction, effects=model.effects, candidates=args.candidates,
                       trials=trials, held=args.freeze, workers=args.workers, scheduler=args.scheduler,
                       input_noise_samples=args.input_noise_samples, max_rounds=args.rounds,
-                      probe_study=not args.no_probe_study, progress=progress, start_rates=args.start_rates)
+                      probe_study=not args.no_probe_study, progress=progress, start_rates=args.start_rates,
+                      checkpoint=checkpoint)
     print(result.format())
     out = args.out or Path("out") / f"{Path(campaign.path).name}.model.yaml"
     _write_atomically(out, lambda p: p.write_text(model_to_yaml(
         result.friction, result.effects, comment=f"rc1 diagnose {campaign.path}: {result.verdict}")))
-    print(f"model file: {out}  ({result.simulations} simulations, {result.wall_s:.0f} s)")
+    resumed = f", {result.resumed} of them from an interrupted run's checkpoint" if result.resumed else ""
+    print(f"model file: {out}  ({result.simulations} simulations{resumed}, {result.wall_s:.0f} s)")
     if args.json:
         _write_atomically(args.json, lambda p: p.write_text(json.dumps(result.to_json(), indent=2, default=_jsonable)
                                                             + "\n"))
@@ -650,6 +617,7 @@ def cmd_diagnose(args) -> int:
                           "candidates.png": candidates_figure(result.candidates)}.items():
             _write_atomically(args.plots / name, lambda p, fig=fig: fig.savefig(p, format="png", dpi=110))
             plt.close(fig)
+    Checkpoint.discard(checkpoint)
     return 0
 
 
@@ -666,7 +634,7 @@ def _jsonable(value):
 def _check_outputs(args) -> None:
     """Rc1Error for an output the command could not write, before it does any work (a long diagnosis must not end
     in an unwritable path): the folders of --json and --out, and --plots, are created and written to once."""
-    files = {"json": True, "out": args.command != "sweep", "plots": False}  # sweep's --out is a folder
+    files = {"json": True, "out": args.command != "sweep", "plots": False, "checkpoint": False}  # sweep's --out: a folder
     folders = [(f"--{name} {getattr(args, name)}", getattr(args, name).parent if is_file else getattr(args, name))
                for name, is_file in files.items()
                if isinstance(getattr(args, name, None), Path) and args.command != "synthesize"]

@@ -416,3 +416,22 @@ def test_the_benchmark_names_a_bad_option_in_one_line_before_any_campaign(tmp_pa
     assert proc.returncode != 0 and not (tmp_path / "rows.jsonl").exists()
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith(option) and named in lines[0], proc.stderr
+
+
+def test_an_interrupted_diagnosis_resumes_from_its_checkpoint_with_the_same_answer(tmp_path):
+    campaign = _campaign(tmp_path / "c", {"wheel_toe_deg": 1.5}, design=[Case([], 1), Case([7], 1)])
+    options = dict(candidates=["wheel_toe", "head_drag"], input_noise_samples=2, max_rounds=1)
+    whole = _diagnose(campaign, **options)
+    batches = []
+
+    def interrupt_at_the_fourth_batch(text):
+        batches.append(text)
+        if len(batches) == 4:
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        _diagnose(campaign, progress=interrupt_at_the_fourth_batch, checkpoint=tmp_path / "checkpoint", **options)
+    again = _diagnose(campaign, checkpoint=tmp_path / "checkpoint", **options)
+    assert 0 < again.resumed < again.simulations == whole.simulations  # three batches came from the checkpoint
+    assert (again.verdict, again.effects, again.friction) == (whole.verdict, whole.effects, whole.friction)
+    assert [c.coordinates for c in again.candidates] == [c.coordinates for c in whole.candidates]

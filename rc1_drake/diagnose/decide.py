@@ -7,10 +7,11 @@ import numpy as np
 
 from ..config import FRICTION_NAMES
 from ..effects import LIBRARY, effect_values
+from ..sysid.evaluate import Evaluator
 from .coordinates import model_at, starts_at
 from .fit import Fit, fit
 from .linearize import Linearization, visibility
-from .replays import Evaluator, evaluate
+from .replays import evaluate
 from .report import CandidateResult, HeldOutScore
 from .significance import interval95, orthogonal_to, subspace_cosine, wald_p
 from .thresholds import THRESHOLDS, Thresholds

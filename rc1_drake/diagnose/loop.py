@@ -11,13 +11,14 @@ from ..config import FRICTION_NAMES, START_MODES, Friction
 from ..effects import LIBRARY, active, candidate_names, potentiometer_faults
 from ..executor import make_executor
 from ..residuals import where_it_fails
+from ..sysid.evaluate import Checkpoint, Evaluator
 from ..sysid.residual import trial_residual
 from .coordinates import START, physics_names
 from .decide import decide, held_out_by_simulation, rank, screen_friction, unrefitted
 from .fit import fit, polish, starts_fitted
 from .linearize import Linearization, linearize, moved, with_replay_error
 from .probe import suggest_experiments
-from .replays import INPUT_NOISE_SAMPLES, Evaluator, replay_and_score
+from .replays import INPUT_NOISE_SAMPLES, replay_and_score
 from .report import Diagnosis, Round, waterfall_step
 from .significance import interval95, misfit
 from .thresholds import THRESHOLDS, Thresholds
@@ -30,20 +31,22 @@ CHECKED_CANDIDATES = 2  # of those, the best significant ones checked by simulat
 
 def diagnose(campaign, *, friction: Optional[Friction] = None, effects=None, candidates=None, trials=None,
              held=(), workers=None, scheduler=None, input_noise_samples=INPUT_NOISE_SAMPLES, max_rounds=MAX_ROUNDS,
-             probe_study=True, progress=None, start_rates="rest", thresholds: Thresholds = THRESHOLDS) -> Diagnosis:
+             probe_study=True, progress=None, start_rates="rest", thresholds: Thresholds = THRESHOLDS,
+             checkpoint=None) -> Diagnosis:
     """The loop (the package's docstring) on `campaign` (its `trials`, all by default), from the model (`friction`,
     `effects`); `candidates` are effect names or groups (effects.candidate_names; by default the physical effects,
     and the potentiometer faults of joints whose readings pass their limit); the friction coefficients named in
     `held` stay at their values. The head's rates at t = 0 of a trial that does not give them: `start_rates`
     "rest", the protocol's convention; "fit", three nuisance coordinates per trial fixed in every fit by its first
-    START_FIT_S, for data whose start follows no known convention."""
+    START_FIT_S, for data whose start follows no known convention. `checkpoint`: a folder where every replay's result
+    is kept as it arrives; a diagnosis interrupted and run again with it resumes where it stopped."""
     started = time.perf_counter()
     if start_rates not in START_MODES:
         raise ValueError(f"start_rates must be one of {START_MODES}, got {start_rates!r}")
     friction, effects, chosen = friction or Friction(), dict(effects or {}), campaign.chosen(trials)
     replayed, not_detectable = _candidates(chosen, effects, candidates)
     with make_executor(workers=workers or min(os.cpu_count() or 1, len(chosen)), scheduler=scheduler) as executor:
-        evaluator = Evaluator(executor, progress)
+        evaluator = Evaluator(executor, progress, Checkpoint(checkpoint) if checkpoint else None)
         lin = linearize(chosen, friction, effects, replayed, evaluator, input_noise_samples=input_noise_samples,
                         held=held, starts=start_rates == "fit")
         search = _Search.begin(lin, evaluator, chosen, replayed, held, input_noise_samples, thresholds)
@@ -64,6 +67,7 @@ def diagnose(campaign, *, friction: Optional[Friction] = None, effects=None, can
                      effects=search.lin.effects, accepted=search.accepted, verdict=found, explanation=explanation,
                      misfit_p=left.p, unexplained_trials=left.outliers, not_detectable=not_detectable,
                      where_it_fails=where, simulations=evaluator.simulations, wall_s=time.perf_counter() - started,
+                     resumed=evaluator.checkpoint.resumed if evaluator.checkpoint else 0,
                      trials=search.lin.trials, report=report, stop_reason=search.stop_reason,
                      final_coordinates={n: v for n, v in final.items() if n not in search.nuisance},
                      starts={n: v for n, v in final.items() if n in search.nuisance})
@@ -223,7 +227,7 @@ class _Search:
         lin = self.lin
         final_fit = fit(lin, self.model_names)
         out = self.evaluator.map(replay_and_score, [(t, lin.friction, lin.effects) for t in lin.trials],
-                                 "where the model fails")
+                                 "where the model fails", keep=False)  # whole runs: too large to keep
         report = CampaignReport(campaign=str(campaign.path), friction=lin.friction, trials=[o[0] for o in out],
                                 runs={t.trial_id: o[1] for t, o in zip(lin.trials, out, strict=True)})
         simulated = [lin.corrected(k, trial_residual(t, report.runs[t.trial_id])) for k, t in enumerate(lin.trials)]

@@ -14,8 +14,8 @@ from ..effects import LIBRARY
 from ..executor import make_executor
 from ..measurements import load_campaign
 from ..synthesize import Case, Noise, Variation, synthesize_campaign
+from ..sysid.evaluate import Evaluator
 from .linearize import FINAL_SIGMA_M, linearize
-from .replays import Evaluator
 from .significance import subspace_cosine
 
 PROBE_KINDS = {

@@ -2,7 +2,7 @@
 the trial's noise-free twin, and the Evaluator that runs batches of them on an executor."""
 
 import dataclasses
-from typing import Callable, Optional
+from typing import Optional
 
 import numpy as np
 
@@ -96,18 +96,3 @@ def draws_mean_and_covariance(draws) -> Optional[tuple]:
 def replay_and_score(trial, friction, effects) -> tuple:
     run = replay(trial, friction, effects)
     return score_trial(trial, run), run
-
-
-class Evaluator:
-    """Runs batches of (trial, friction, effects) replays on an executor, counting them."""
-
-    def __init__(self, executor, progress: Optional[Callable[[str], None]] = None):
-        self.executor, self.progress, self.simulations = executor, progress, 0
-
-    def map(self, function, jobs, what: str) -> list:
-        if self.progress:
-            self.progress(f"{what}: {len(jobs)} replays")
-        self.simulations += len(jobs)
-        if self.executor is None:
-            return [function(*job) for job in jobs]
-        return [f.result() for f in [self.executor.submit(function, *job) for job in jobs]]

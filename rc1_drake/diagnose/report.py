@@ -98,6 +98,7 @@ class Diagnosis:
     final_coordinates: Dict[str, List[float]] = dataclasses.field(default_factory=dict)  # name -> [value, se]
     starts: Dict[str, List[float]] = dataclasses.field(default_factory=dict)  # "<trial>:<rate>" -> [value, se]
     stop_reason: str = ""
+    resumed: int = 0  # of the simulations, results taken from a checkpoint of an interrupted run
     unexplained_trials: Dict[str, dict] = dataclasses.field(default_factory=dict)  # trial -> misfit (see Misfit)
     trials: list = dataclasses.field(default_factory=list, repr=False)  # the trials, with their fitted starts
     report: object = dataclasses.field(default=None, repr=False)  # compare.CampaignReport of the final model (plots)
@@ -122,7 +123,8 @@ class Diagnosis:
             "error_after": self.waterfall[-1] if self.waterfall else None,
             "final_coordinates": self.final_coordinates, "starts": self.starts, "stop_reason": self.stop_reason,
             "waterfall": self.waterfall, "misfit_p": self.misfit_p, "unexplained_trials": self.unexplained_trials, "not_detectable": self.not_detectable,
-            "where_it_fails": self.where_it_fails, "simulations": self.simulations, "wall_s": self.wall_s,
+            "where_it_fails": self.where_it_fails, "simulations": self.simulations, "resumed": self.resumed,
+            "wall_s": self.wall_s,
         }
 
     def format(self) -> str:

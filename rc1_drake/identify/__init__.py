@@ -9,10 +9,12 @@ from ..sysid.input_noise import INPUT_NOISE_SAMPLES
 from .avs import AvsIteration, AvsResult, Eq6Objective, avs, avs_candidates, avs_figure, identify_avs
 from .heldout import HeldOut, held_out_errors, split_trials
 from .program import ProgramResult, fit_program, identify_equation_error, identify_program, screen, seeded_start
+from .run import METHODS, Identification, identify
 
-__all__ = ["INPUT_NOISE_SAMPLES", "AvsIteration", "AvsResult", "Eq6Objective", "HeldOut", "ProgramResult", "avs",
+__all__ = ["INPUT_NOISE_SAMPLES", "METHODS", "AvsIteration", "AvsResult", "Eq6Objective", "HeldOut", "Identification",
+           "ProgramResult", "avs",
            "avs_candidates", "avs_figure", "fit_program", "friction_to_yaml", "held_out_errors", "identify_avs",
-           "identify_equation_error", "identify_program", "load_friction_file", "screen", "seeded_start",
+           "identify", "identify_equation_error", "identify_program", "load_friction_file", "screen", "seeded_start",
            "split_trials"]
 
 

@@ -1,7 +1,13 @@
 """Evaluating a model on a campaign: each worker process keeps one Replayer per trial (its Diagram,
-Simulator and smoothed reference, built once), and maps a function over the trials in this process or on
-the executor (executor.py).
+Simulator and smoothed reference, built once); batches of jobs run in this process or on the executor
+(executor.py), counted, and with a Checkpoint every result is kept on disk as it arrives, so that a long job
+interrupted resumes where it stopped.
 """
+
+import hashlib
+import pickle
+from pathlib import Path
+from typing import Callable, Optional
 
 import numpy as np
 
@@ -37,3 +43,79 @@ def map_trials(function, trials, friction, effects, executor) -> list:
     if executor is None:
         return [function(t, friction, effects) for t in trials]
     return [f.result() for f in [executor.submit(function, t, friction, effects) for t in trials]]
+
+
+def code_version() -> str:
+    """A hash of the package's source files: results computed by other code are never taken from a checkpoint."""
+    digest = hashlib.sha256()
+    for path in sorted(Path(__file__).resolve().parents[1].rglob("*.py")):
+        digest.update(path.read_bytes())
+    return digest.hexdigest()[:16]
+
+
+class Checkpoint:
+    """Results of jobs on disk, by the job's content and this code's version: one file of pickled (key, result)
+    records, appended and flushed as each result arrives. A record cut short by an interruption is dropped."""
+
+    def __init__(self, folder):
+        self.path = Path(folder) / f"results-{code_version()}.pkl"
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self.results: dict = {}
+        if self.path.exists():
+            with open(self.path, "rb") as f:
+                while True:
+                    try:
+                        key, value = pickle.load(f)
+                    except Exception:  # noqa: BLE001 - the end of the file, or a record the interruption cut
+                        break
+                    self.results[key] = value
+        self.resumed = 0  # results taken from the file by this run
+
+    @staticmethod
+    def key(function, job) -> str:
+        digest = hashlib.sha256(f"{function.__module__}.{function.__qualname__}".encode())
+        digest.update(pickle.dumps(job, protocol=5))
+        return digest.hexdigest()
+
+    def put(self, key: str, value) -> None:
+        self.results[key] = value
+        with open(self.path, "ab") as f:
+            pickle.dump((key, value), f, protocol=5)
+
+    def take(self, key: str):
+        self.resumed += 1
+        return self.results[key]
+
+    @staticmethod
+    def discard(folder) -> None:
+        """Delete this code's checkpoint in `folder` (the job finished: its results are in its output)."""
+        (Path(folder) / f"results-{code_version()}.pkl").unlink(missing_ok=True)
+
+
+class Evaluator:
+    """Runs batches of jobs, function(*job), in this process or on an executor, counting them; with a
+    `checkpoint`, a job whose result is on disk is not run again, and every new result goes there."""
+
+    def __init__(self, executor, progress: Optional[Callable[[str], None]] = None,
+                 checkpoint: Optional[Checkpoint] = None):
+        self.executor, self.progress, self.checkpoint, self.simulations = executor, progress, checkpoint, 0
+
+    def map(self, function, jobs, what: str, *, keep: bool = True) -> list:
+        """[function(*job) for job in jobs]; `keep`: through the checkpoint (not for results too large to keep)."""
+        if self.progress:
+            self.progress(f"{what}: {len(jobs)} replays")
+        self.simulations += len(jobs)
+        store = self.checkpoint if keep else None
+        keys = [store.key(function, job) for job in jobs] if store else [None] * len(jobs)
+        results = [store.take(k) if store and k in store.results else None for k in keys]
+        todo = [i for i, k in enumerate(keys) if not (store and k in store.results)]
+        if self.executor is None:
+            done = ((i, function(*jobs[i])) for i in todo)
+        else:
+            futures = [(i, self.executor.submit(function, *jobs[i])) for i in todo]
+            done = ((i, f.result()) for i, f in futures)
+        for i, value in done:
+            results[i] = value
+            if store:
+                store.put(keys[i], value)
+        return results
