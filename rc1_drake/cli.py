@@ -197,6 +197,7 @@ def _add_identify(sub) -> None:
                      help="keep a coefficient at its start value (repeatable)")
     _add_start_rates(idn, default="rest", fit="fitted once per trial to its first 0.5 s of camera path and IMU, "
                                               "at the start model, and held through the fit")
+    _add_checkpoint(idn, default="<campaign>-identify")
     _add_outputs(idn, out_help="write a model file: the identified coefficients and the (fixed) effects")
 
 
@@ -230,16 +231,21 @@ def _add_diagnose(sub) -> None:
     dgn.add_argument("--input-noise-samples", type=_positive_int, default=DIAGNOSE_NOISE_SAMPLES, metavar="K",
                      help="noisy replays of each trial's noise-free twin, for the replay's own miss and its input "
                           f"noise (default {DIAGNOSE_NOISE_SAMPLES})")
-    dgn.add_argument("--checkpoint", type=Path, metavar="DIR",
-                     help="keep every replay's result here as it arrives, so that an interrupted diagnosis run again "
-                          "resumes where it stopped (default: out/checkpoints/<campaign>; removed when it finishes)")
     dgn.add_argument("--no-probe-study", action="store_true",
                      help="do not simulate short probe trials to name the experiment that would see an effect "
                           "not detectable here")
     _add_start_rates(dgn, default="rest", fit="three nuisance coordinates per trial, fixed by its first 0.5 s in "
                                               "every fit: for data whose start follows no known convention")
+    _add_checkpoint(dgn, default="<campaign>")
     _add_outputs(dgn, out_help="write the diagnosed model (friction and accepted effects; default "
                                "out/<campaign>.model.yaml)")
+
+
+def _add_checkpoint(parser, *, default: str) -> None:
+    parser.add_argument("--checkpoint", type=Path, metavar="DIR",
+                        help="keep every replay's result here as it arrives, so that the same command interrupted and "
+                             f"run again resumes where it stopped (default: out/checkpoints/{default}; removed when "
+                             "it finishes)")
 
 
 def _add_start_rates(parser, *, default: str, fit: str) -> None:
@@ -533,11 +539,12 @@ def cmd_identify(args) -> int:
         print(f"  iteration {done}/{total}: {name}, mean Eq. 6 error {error:.2f}%", file=sys.stderr, flush=True)
 
     campaign = loaded_campaign(args.campaign)
+    checkpoint = args.checkpoint or Path("out") / "checkpoints" / f"{Path(campaign.path).name}-identify"
     result = identify(campaign, method=args.method, trials=ids(args.trials), validation=ids(args.validation),
                       start=load_model_file(args.start) if args.start else None, freeze=args.freeze,
                       start_rates=args.start_rates, iterations=args.iterations,
                       input_noise_samples=args.input_noise_samples, workers=args.workers, scheduler=args.scheduler,
-                      progress=progress)
+                      progress=progress, checkpoint=checkpoint)
     print(result.format())
     if args.json:
         _write_atomically(args.json, lambda p: p.write_text(json.dumps(result.to_json(), indent=2, default=float)
@@ -548,6 +555,7 @@ def cmd_identify(args) -> int:
         fig = avs_figure(result.result)
         _write_atomically(args.plots / "avs_iterations.png", lambda p: fig.savefig(p, format="png", dpi=110))
         plt.close(fig)
+    Checkpoint.discard(checkpoint)
     return 0
 
 

@@ -19,8 +19,14 @@ import math
 
 import numpy as np
 from pydrake.systems.framework import DiagramBuilder
-from pydrake.systems.primitives import (AffineSystem, LinearSystem, LogVectorOutput, MatrixGain, Saturation,
-                                        TrajectorySource)
+from pydrake.systems.primitives import (
+    AffineSystem,
+    LinearSystem,
+    LogVectorOutput,
+    MatrixGain,
+    Saturation,
+    TrajectorySource,
+)
 
 from .config import Scenario
 from .effects import commanded_gait

@@ -35,7 +35,7 @@ from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import BasicVector, LeafSystem, ValueProducer
 
 from .config import GRAVITY_M_S2, NUM_JOINTS, Friction
-from .kinematics import ChainGeometry, wheel_kinematics_kernel, jit
+from .kinematics import ChainGeometry, jit, wheel_kinematics_kernel
 from .model import set_payload
 
 

@@ -20,8 +20,8 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import EventStatus
 
 from .config import JOINT_LIMIT_DEG, Rc1Error, Scenario
-from .effects import apply_effects, commanded_gait
 from .diagram import RC1Diagram, build_diagram, build_key
+from .effects import apply_effects, commanded_gait
 from .gait import serpenoid, serpenoid_parameters
 from .kinematics import ChainGeometry, module_motion, module_yaws
 

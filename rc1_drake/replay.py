@@ -19,10 +19,10 @@ from pydrake.trajectories import PiecewisePolynomial
 
 from .config import Failure, Friction, Numerics, Scenario, Servo, Start, Stop
 from .effects import sensor_model
-from .gait import serpenoid
-from .measurements import Trial
 from .engine import make_session
 from .engine.dynamics import plant_numbers
+from .gait import serpenoid
+from .measurements import Trial
 from .protocol import Run, rest_state
 from .smoothing import smoothed_samples
 from .start import StartEstimate, fit_start

@@ -10,8 +10,7 @@ from typing import Dict, List, Optional
 
 from pydrake.common.yaml import yaml_load_typed
 
-from .config import (FAILURE_MODES, FRICTION_NAMES, NUM_JOINTS, REPO_ROOT, Friction, Rc1Error, Scenario,
-                     Servo)
+from .config import FAILURE_MODES, FRICTION_NAMES, NUM_JOINTS, REPO_ROOT, Friction, Rc1Error, Scenario, Servo
 from .effects import validate_effects
 
 DEFAULT_SCENARIOS = REPO_ROOT / "scenarios" / "rc1.yaml"

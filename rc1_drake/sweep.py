@@ -18,8 +18,8 @@ from typing import List
 import numpy as np
 
 from .config import Failure, Friction, Gait, Numerics, Rc1Error, Scenario, Start, Stop
-from .scenarios import validate
 from .metrics import summarize
+from .scenarios import validate
 
 PATH_PERIOD_S = 0.1
 

@@ -17,8 +17,9 @@ import numpy as np
 from .config import NUM_JOINTS, TRUTH_MODELS, Failure, Friction, Gait, Numerics, Rc1Error, Scenario, Start, Stop
 from .diagram import build_key
 from .effects import LIBRARY, commanded_gait, sensor_model
-from .measurements import Campaign, Stop as TrialStop, Trial, write_trial
 from .engine import make_session
+from .measurements import Campaign, Trial, write_trial
+from .measurements import Stop as TrialStop
 
 
 @dataclasses.dataclass

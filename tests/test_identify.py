@@ -258,3 +258,19 @@ def test_exact_residual_jacobian_matches_finite_differences(campaign):
         expected = (at(1) - at(-1)) / (2 * h)
         assert np.abs(expected).max() > 1e-2, name
         np.testing.assert_allclose(jacobian[:, p], expected, atol=1e-4 * np.abs(expected).max(), err_msg=name)
+
+
+def test_an_interrupted_identification_resumes_from_its_checkpoint_with_the_same_answer(campaign, tmp_path):
+    from rc1_drake.identify import identify
+
+    options = dict(method="avs", iterations=2, input_noise_samples=2, workers=1)
+    whole = identify(campaign, **options)
+
+    def interrupt_after_the_first_iteration(done, total, name, error):
+        raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        identify(campaign, progress=interrupt_after_the_first_iteration, checkpoint=tmp_path / "checkpoint", **options)
+    again = identify(campaign, checkpoint=tmp_path / "checkpoint", **options)
+    assert again.resumed > 0 and again.simulations == whole.simulations
+    assert again.friction == whole.friction and again.uncertainty.standard_errors == whole.uncertainty.standard_errors

@@ -13,10 +13,10 @@ import time
 import numpy as np
 
 from ..config import FRICTION_NAMES, NUM_JOINTS, Rc1Error, Scenario
+from ..diagram import build_key
 from ..effects import LIBRARY, commanded_gait, coordinate_owner, effect_values, model_setup, shifted
 from ..friction import FAILED, FREE, LOCKED, friction_parameters
 from ..gait import serpenoid_parameters
-from ..diagram import build_key
 from ..protocol import Run, Session, initial_state
 from .dynamics import plant_numbers
 from .run import CIRCLING, CROSSED, NOT_FINITE, REFERENCE, SERPENOID, advance_run

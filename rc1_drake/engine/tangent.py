@@ -16,9 +16,29 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..friction import (C_JOINT, C_LAT, C_LONG, EPS, FAILED, FREE, HEAD_MU, HEAD_NORMAL, JOINT_COULOMB,
-                        JOINT_EPS_RAD_S, MU_LAT, MU_LONG, PER_WHEEL, SHAPE, assemble_step, cholesky, cholesky_solve,
-                        coulomb_law, friction_problem, jacobian_span, spd_solve)
+from ..friction import (
+    C_JOINT,
+    C_LAT,
+    C_LONG,
+    EPS,
+    FAILED,
+    FREE,
+    HEAD_MU,
+    HEAD_NORMAL,
+    JOINT_COULOMB,
+    JOINT_EPS_RAD_S,
+    MU_LAT,
+    MU_LONG,
+    PER_WHEEL,
+    SHAPE,
+    assemble_step,
+    cholesky,
+    cholesky_solve,
+    coulomb_law,
+    friction_problem,
+    jacobian_span,
+    spd_solve,
+)
 from ..kinematics import jit
 from .dynamics import chain_terms
 from .step import LIMIT_BETA, limit_constraints, rigid_regularization

@@ -14,7 +14,7 @@ import numpy as np
 from ..compare import simulator_error
 from ..config import FRICTION_NAMES, Friction, Rc1Error
 from ..executor import make_executor
-from ..sysid.evaluate import map_trials, replay
+from ..sysid.evaluate import Evaluator, replay
 from ..sysid.input_noise import INPUT_NOISE_SAMPLES
 from ..sysid.objective import CampaignResiduals
 from ..sysid.parameters import DEFAULT_PARAMETERS, PAPER_MANUAL, Parameter, with_fixed
@@ -27,17 +27,19 @@ def eq6_error(trial, friction: Friction, effects=None) -> float:
 
 
 class Eq6Objective:
-    """Mean Eq. 6 error of the trials for a friction set; counts simulations, caches evaluations."""
+    """Mean Eq. 6 error of the trials for a friction set; counts simulations, caches evaluations (and keeps
+    each replay's in `checkpoint`, evaluate.Checkpoint, when given)."""
 
-    def __init__(self, trials, *, executor=None, effects=None):
+    def __init__(self, trials, *, executor=None, effects=None, checkpoint=None):
         self.trials = list(trials)
-        self.executor = executor
+        self.evaluator = Evaluator(executor, checkpoint=checkpoint)
         self.effects = effects
         self.simulations = 0
         self._cache: Dict[tuple, float] = {}
 
     def per_trial(self, friction: Friction, effects=None) -> List[float]:
-        errors = map_trials(eq6_error, self.trials, friction, with_fixed(self.effects, effects), self.executor)
+        jobs = [(t, friction, with_fixed(self.effects, effects)) for t in self.trials]
+        errors = self.evaluator.map(eq6_error, jobs, "Eq. 6 errors")
         self.simulations += len(self.trials)
         return errors
 
@@ -133,14 +135,17 @@ def avs(objective, *, start: Friction = PAPER_MANUAL, iterations: int = 10,
 
 
 def identify_avs(campaign, *, trials=None, iterations=10, workers=None, scheduler=None, start=PAPER_MANUAL,
-                 parameters=None, progress=None, effects=None, input_noise_samples=INPUT_NOISE_SAMPLES):
+                 parameters=None, progress=None, effects=None, input_noise_samples=INPUT_NOISE_SAMPLES,
+                 checkpoint=None):
     """AVS on the chosen trials (the model with `effects`, held fixed), then the uncertainty of its
-    result (uncertainty(), with `input_noise_samples`): (AvsResult, Uncertainty)."""
+    result (uncertainty(), with `input_noise_samples`): (AvsResult, Uncertainty). `checkpoint`: an
+    evaluate.Checkpoint that keeps every replay's result (a rerun resumes)."""
     chosen = campaign.chosen(trials)
     with make_executor(workers=workers or min(os.cpu_count() or 1, len(chosen)), scheduler=scheduler) as executor:
-        objective = Eq6Objective(chosen, executor=executor, effects=effects)
+        objective = Eq6Objective(chosen, executor=executor, effects=effects, checkpoint=checkpoint)
         result = avs(objective, start=start, iterations=iterations, parameters=parameters, progress=progress)
-        spread = uncertainty(CampaignResiduals(chosen, executor=executor, effects=effects), result.friction,
+        residuals = CampaignResiduals(chosen, executor=executor, effects=effects, checkpoint=checkpoint)
+        spread = uncertainty(residuals, result.friction,
                              parameters=parameters, input_noise_samples=input_noise_samples)
     return result, spread
 

@@ -42,11 +42,11 @@ def split_trials(campaign, *, trials=None, validation=None) -> tuple:
 
 
 def held_out_errors(estimation, validation, friction: Friction, *, workers=None, scheduler=None,
-                    effects=None) -> HeldOut:
+                    effects=None, checkpoint=None) -> HeldOut:
     """Eq. 6 errors of `friction` (and `effects`) on the estimation and the validation trials (split_trials)."""
     everything = estimation + validation
     with make_executor(workers=workers or min(os.cpu_count() or 1, len(everything)), scheduler=scheduler) as executor:
-        errors = Eq6Objective(everything, executor=executor, effects=effects).per_trial(friction)
+        errors = Eq6Objective(everything, executor=executor, effects=effects, checkpoint=checkpoint).per_trial(friction)
     k = len(estimation)
     return HeldOut(estimation_trials=[t.trial_id for t in estimation],
                    validation_trials=[t.trial_id for t in validation],

@@ -129,15 +129,17 @@ def screen(residuals, start: Friction, *, parameters=None, effects=None,
 
 
 def identify_program(campaign, *, trials=None, workers=None, scheduler=None, start=PAPER_MANUAL, parameters=None,
-                     max_iterations=10, effects=None, screened=True, input_noise_samples=INPUT_NOISE_SAMPLES):
+                     max_iterations=10, effects=None, screened=True, input_noise_samples=INPUT_NOISE_SAMPLES,
+                     checkpoint=None):
     """The program fit on the chosen trials (the model with `effects`, held fixed), then the uncertainty
     of its result over every originally free parameter. With `screened`, the parameters the start's
     uncertainty finds not identifiable stay at their start values (screen()); the result's warnings
-    say so; `input_noise_samples` goes to the result's uncertainty(). Returns (ProgramResult, Uncertainty)."""
+    say so; `input_noise_samples` goes to the result's uncertainty(); `checkpoint` (evaluate.Checkpoint) keeps every
+    replay's result. Returns (ProgramResult, Uncertainty)."""
     chosen = campaign.chosen(trials)
     parameters = parameters or DEFAULT_PARAMETERS
     with make_executor(workers=workers or min(os.cpu_count() or 1, len(chosen)), scheduler=scheduler) as executor:
-        residuals = CampaignResiduals(chosen, executor=executor, effects=effects)
+        residuals = CampaignResiduals(chosen, executor=executor, effects=effects, checkpoint=checkpoint)
         fitted, first = (screen(residuals, start, parameters=parameters, input_noise_samples=input_noise_samples)
                          if screened else (parameters, None))
         result = fit_program(residuals, start=start, parameters=fitted, max_iterations=max_iterations)

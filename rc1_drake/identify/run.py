@@ -10,6 +10,7 @@ from ..config import START_MODES, Friction
 from ..replay import fit_starts
 from ..scenarios import ModelFile
 from ..start import START_NAMES
+from ..sysid.evaluate import Checkpoint
 from ..sysid.input_noise import INPUT_NOISE_SAMPLES
 from ..sysid.parameters import DEFAULT_PARAMETERS, PAPER_MANUAL
 from ..sysid.stats import Uncertainty
@@ -32,6 +33,7 @@ class Identification:
     wall_s: float  # of the fit and its uncertainty
     notes: List[str] = dataclasses.field(default_factory=list)  # how the start was chosen
     record: dict = dataclasses.field(default_factory=dict)  # the trials' fitted starts, equation error's start
+    resumed: int = 0  # replays whose results came from the checkpoint of an interrupted run
 
     @property
     def friction(self) -> Friction:
@@ -54,8 +56,9 @@ class Identification:
             lines += ["", f"Uncertainty at the result (residual Jacobian; standardized residual RMS "
                           f"{self.uncertainty.residual_rms:.2f}):", self.uncertainty.table()]
         lines += [f"warning: {w}" for w in self.warnings]
+        resumed = f" ({self.resumed} results from an interrupted run's checkpoint)" if self.resumed else ""
         lines += [self.held_out.line(), f"fit: {self.simulations} simulations, {self.wall_s:.0f} s; errors: "
-                                        f"{self.held_out.simulations} more simulations"]
+                                        f"{self.held_out.simulations} more simulations{resumed}"]
         return "\n".join(lines)
 
     def to_json(self) -> dict:
@@ -68,12 +71,14 @@ class Identification:
 def identify(campaign, *, method: str = "avs", trials=None, validation=None, start: Optional[ModelFile] = None,
              freeze=(), start_rates: str = "rest", iterations: int = 10,
              input_noise_samples: int = INPUT_NOISE_SAMPLES, workers=None, scheduler=None,
-             progress: Optional[Callable] = None) -> Identification:
+             progress: Optional[Callable] = None, checkpoint=None) -> Identification:
     """Identify the free friction coefficients of `campaign`'s `trials` (all by default) by `method`, from `start`
     (a model file: its coefficients and its effects, which stay fixed; the paper's manual values by default, where
     the program fit starts from what equation error identifies), with the coefficients in `freeze` held; judged on
     `validation` (by default the trials not fitted). `start_rates` "fit": each trial's start is fitted once to its
-    first 0.5 s at the start model and held. `progress(done, total, name, error)`: each AVS iteration."""
+    first 0.5 s at the start model and held. `progress(done, total, name, error)`: each AVS iteration.
+    `checkpoint`: a folder where every replay's result is kept as it arrives; run again with it, an interrupted
+    identification resumes where it stopped."""
     if method not in METHODS:
         raise ValueError(f"method must be one of {METHODS}, got {method!r}")
     if start_rates not in START_MODES:
@@ -89,10 +94,11 @@ def identify(campaign, *, method: str = "avs", trials=None, validation=None, sta
                             for t in campaign.trials}
     estimation, held = split_trials(campaign, trials=trials, validation=validation)
     began, spread = time.perf_counter(), None
+    kept = Checkpoint(checkpoint) if checkpoint else None
     if method == "avs":
         result, spread = identify_avs(campaign, trials=trials, iterations=iterations, workers=workers,
                                       scheduler=scheduler, parameters=parameters, progress=progress, start=friction,
-                                      effects=effects, input_noise_samples=input_noise_samples)
+                                      effects=effects, input_noise_samples=input_noise_samples, checkpoint=kept)
     elif method == "program":
         if start is None:
             friction, seed = seeded_start(campaign, trials=trials, start=friction, parameters=parameters)
@@ -103,7 +109,8 @@ def identify(campaign, *, method: str = "avs", trials=None, validation=None, sta
                 record["equation_error_start"] = seed.to_json()
         result, spread = identify_program(campaign, trials=trials, workers=workers, scheduler=scheduler,
                                           parameters=parameters, max_iterations=iterations, start=friction,
-                                          effects=effects, input_noise_samples=input_noise_samples)
+                                          effects=effects, input_noise_samples=input_noise_samples,
+                                          checkpoint=kept)
     else:
         result = identify_equation_error(campaign, trials=trials, start=friction, parameters=parameters,
                                          effects=effects)
@@ -111,6 +118,8 @@ def identify(campaign, *, method: str = "avs", trials=None, validation=None, sta
     if method == "program" and result.held:
         warnings.append(f"held at the start values (not identifiable at the start): {', '.join(result.held)}")
     simulations, wall = result.simulations + (spread.simulations if spread else 0), time.perf_counter() - began
-    errors = held_out_errors(estimation, held, result.friction, workers=workers, scheduler=scheduler, effects=effects)
+    errors = held_out_errors(estimation, held, result.friction, workers=workers, scheduler=scheduler, effects=effects,
+                             checkpoint=kept)
     return Identification(method=method, result=result, uncertainty=spread, warnings=warnings, held_out=errors,
-                          effects=effects, simulations=simulations, wall_s=wall, notes=notes, record=record)
+                          effects=effects, simulations=simulations, wall_s=wall, notes=notes, record=record,
+                          resumed=kept.resumed if kept else 0)

@@ -38,13 +38,6 @@ def replay(trial, friction: Friction, effects=None):
     return replayer(trial).run(friction, effects)
 
 
-def map_trials(function, trials, friction, effects, executor) -> list:
-    """function(trial, friction, effects) for every trial, in this process or on the executor."""
-    if executor is None:
-        return [function(t, friction, effects) for t in trials]
-    return [f.result() for f in [executor.submit(function, t, friction, effects) for t in trials]]
-
-
 def code_version() -> str:
     """A hash of the package's source files: results computed by other code are never taken from a checkpoint."""
     digest = hashlib.sha256()

@@ -5,7 +5,7 @@ import numpy as np
 from scipy.linalg import block_diag
 
 from ..config import Friction
-from .evaluate import map_trials
+from .evaluate import Evaluator
 from .input_noise import INPUT_NOISE_SAMPLES, input_noise_covariance
 from .parameters import with_fixed
 from .residual import replay_residual, replay_residual_and_jacobian, residual_channels
@@ -13,14 +13,17 @@ from .residual import replay_residual, replay_residual_and_jacobian, residual_ch
 
 class CampaignResiduals:
     """The stacked standardized residuals of the trials for a friction set (and effect parameters, set
-    over the fixed `effects` given here); counts simulations."""
+    over the fixed `effects` given here); counts simulations. Replays run on `executor` (this process when None),
+    their results kept in `checkpoint` (evaluate.Checkpoint) when given."""
 
-    def __init__(self, trials, *, executor=None, effects=None):
-        self.trials, self.executor, self.effects = list(trials), executor, effects
+    def __init__(self, trials, *, executor=None, effects=None, checkpoint=None):
+        self.trials, self.effects = list(trials), effects
+        self.evaluator = Evaluator(executor, checkpoint=checkpoint)
         self.simulations = 0
 
     def __call__(self, friction: Friction, effects=None) -> np.ndarray:
-        parts = map_trials(replay_residual, self.trials, friction, with_fixed(self.effects, effects), self.executor)
+        jobs = [(t, friction, with_fixed(self.effects, effects)) for t in self.trials]
+        parts = self.evaluator.map(replay_residual, jobs, "residuals")
         self.simulations += len(self.trials)
         self.channels = np.concatenate([residual_channels(p) for p in parts])
         return np.concatenate(parts)
@@ -29,10 +32,7 @@ class CampaignResiduals:
         """(the stacked residuals, their derivatives by the parameters `names`) from one replay per trial
         (exact_jacobian_available(names) must hold)."""
         jobs = [(t, friction, with_fixed(self.effects, effects), tuple(names)) for t in self.trials]
-        if self.executor is None:
-            parts = [replay_residual_and_jacobian(*job) for job in jobs]
-        else:
-            parts = [f.result() for f in [self.executor.submit(replay_residual_and_jacobian, *job) for job in jobs]]
+        parts = self.evaluator.map(replay_residual_and_jacobian, jobs, "residuals and their Jacobian")
         self.simulations += len(self.trials)
         self.channels = np.concatenate([residual_channels(r) for r, _ in parts])
         return np.concatenate([r for r, _ in parts]), np.vstack([j for _, j in parts])
@@ -43,9 +43,6 @@ class CampaignResiduals:
         causes, from `samples` resampled replays per trial (plus one unperturbed)."""
         jobs = [(t, friction, with_fixed(self.effects, effects), samples, seed + k)
                 for k, t in enumerate(self.trials)]
-        if self.executor is None:
-            blocks = [input_noise_covariance(*job) for job in jobs]
-        else:
-            blocks = [f.result() for f in [self.executor.submit(input_noise_covariance, *job) for job in jobs]]
+        blocks = self.evaluator.map(input_noise_covariance, jobs, "input noise")
         self.simulations += (samples + 1) * len(self.trials)
         return block_diag(*blocks)
