@@ -17,7 +17,8 @@ how often the best candidate explained only part of the held-out error (not acce
 verdict was the whole right answer (effect_found with the hidden effect alone; no_missing_effect without one).
 --hold-friction holds the friction at the truth, as the tests do (short trials identify no friction
 coefficient). --truth-model reference makes the campaigns with the independent model (reference.py: kinematic
-joints, the head at rest at its start, its own limit model; of the library it expresses the wheel toe and the sensor faults),
+joints, the head at rest at its start, its own limit model; of the library it expresses the wheel toe and the
+sensor faults),
 --record-after-s starts their recording after the robot did: data this project's model did not make.
 --candidates sensor (or physical,sensor) lets the diagnosis consider the sensor faults, which the reference model
 also makes (potentiometer_offset_j9 hides one).
@@ -30,7 +31,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from rc1_drake.config import FRICTION_NAMES, START_MODES, TRUTH_MODELS, Friction, Gait, Stop, Z95
+from rc1_drake.config import FRICTION_NAMES, START_MODES, TRUTH_MODELS, Z95, Friction, Gait, Stop
 from rc1_drake.diagnose import diagnose
 from rc1_drake.effects import LIBRARY, candidate_names, effect_values, parameter
 from rc1_drake.measurements import load_campaign
@@ -47,10 +48,17 @@ def parse_design(text: str) -> list:
     for item in text.split(","):
         m = re.fullmatch(r"(none|J(\d+))(?:@(\d+(?:\.\d+)?))?(?:b(-?\d+(?:\.\d+)?))?(?:x(\d+))?", item.strip())
         if m is None:
-            raise SystemExit(f"--design: cannot read {item!r} (expected none or J<joint>, then @<deg/s>, "
-                             "b<bias deg>, x<trials>)")
-        cases.append(Case([int(m[2])] if m[2] else [], int(m[5] or 1), bias_deg=float(m[4] or 0.0),
-                          gait=Gait(frequency_deg_s=float(m[3])) if m[3] else None))
+            raise SystemExit(
+                f"--design: cannot read {item!r} (expected none or J<joint>, then @<deg/s>, b<bias deg>, x<trials>)"
+            )
+        cases.append(
+            Case(
+                [int(m[2])] if m[2] else [],
+                int(m[5] or 1),
+                bias_deg=float(m[4] or 0.0),
+                gait=Gait(frequency_deg_s=float(m[3])) if m[3] else None,
+            )
+        )
     return cases
 
 
@@ -75,17 +83,41 @@ REFERENCE = {  # a clearly visible strength on DESIGN's 3 s trials (diagnose.pro
 }
 
 
-def one(effect, strength, seed, seconds, workers, held=(), design=DESIGN, truth_model="drake",
-        record_after_s=0.0, candidates="physical", start_rates="rest") -> dict:
+def one(
+    effect,
+    strength,
+    seed,
+    seconds,
+    workers,
+    held=(),
+    design=DESIGN,
+    truth_model="drake",
+    record_after_s=0.0,
+    candidates="physical",
+    start_rates="rest",
+) -> dict:
     effects = {} if effect is None else {REFERENCE[effect][0]: REFERENCE[effect][1] * strength}
     with tempfile.TemporaryDirectory() as tmp:
-        synthesize_campaign(tmp, design=parse_design(design), effects=effects, seed=seed, truth_model=truth_model,
-                            record_after_s=record_after_s,
-                            stop=Stop(line_x_m=None, revolutions=None, time_limit_s=seconds))
+        synthesize_campaign(
+            tmp,
+            design=parse_design(design),
+            effects=effects,
+            seed=seed,
+            truth_model=truth_model,
+            record_after_s=record_after_s,
+            stop=Stop(line_x_m=None, revolutions=None, time_limit_s=seconds),
+        )
         campaign = load_campaign(tmp)
         start = time.perf_counter()
-        result = diagnose(campaign, friction=Friction(), workers=workers, probe_study=False, held=held,
-                          candidates=candidates.split(","), start_rates=start_rates)
+        result = diagnose(
+            campaign,
+            friction=Friction(),
+            workers=workers,
+            probe_study=False,
+            held=held,
+            candidates=candidates.split(","),
+            start_rates=start_rates,
+        )
     first = result.candidates[0] if result.candidates else None
     inside, estimate = None, None
     if effect is not None:  # the final model's estimate (after every round's refit), in the fitted coordinates
@@ -93,16 +125,28 @@ def one(effect, strength, seed, seconds, workers, held=(), design=DESIGN, truth_
         estimate = {k: result.final_coordinates[k] for k in truth if k in result.final_coordinates} or None
         if estimate:
             inside = all(abs(v - truth[k]) <= Z95 * se for k, (v, se) in estimate.items())
-    return {"effect": effect, "strength": strength, "seed": seed, "design": design, "truth_model": truth_model,
-            "record_after_s": record_after_s, "candidates": candidates, "start_rates": start_rates,
-            "verdict": result.verdict,
-            "accepted": result.accepted, "first": first.name if first else None, "inside_interval": inside,
-            "estimate": estimate,
-            "first_round": [[c.name, c.status, c.coordinates, (c.simulated or {}).get("held_out_reduction")]
-                            for c in result.candidates],
-            "partial": [r.partial for r in result.rounds if r.partial],
-            "final_effects": result.effects, "simulations": result.simulations,
-            "wall_s": time.perf_counter() - start}
+    return {
+        "effect": effect,
+        "strength": strength,
+        "seed": seed,
+        "design": design,
+        "truth_model": truth_model,
+        "record_after_s": record_after_s,
+        "candidates": candidates,
+        "start_rates": start_rates,
+        "verdict": result.verdict,
+        "accepted": result.accepted,
+        "first": first.name if first else None,
+        "inside_interval": inside,
+        "estimate": estimate,
+        "first_round": [
+            [c.name, c.status, c.coordinates, (c.simulated or {}).get("held_out_reduction")] for c in result.candidates
+        ],
+        "partial": [r.partial for r in result.rounds if r.partial],
+        "final_effects": result.effects,
+        "simulations": result.simulations,
+        "wall_s": time.perf_counter() - start,
+    }
 
 
 def main():
@@ -113,16 +157,30 @@ def main():
     parser.add_argument("--effects", default=",".join(REFERENCE))
     parser.add_argument("--strengths", default="0.5,1,1.5")
     parser.add_argument("--hold-friction", action="store_true", help="hold the friction at the truth (as the tests)")
-    parser.add_argument("--design", help="the trials of every campaign, e.g. none,none@70,noneb4,J7x2,J13 (default: "
-                        f"{DESIGN}, or the effect's own: {DESIGNS})")
-    parser.add_argument("--truth-model", choices=TRUTH_MODELS, default="drake",
-                        help="what makes the campaigns (default: drake, this project's model)")
+    parser.add_argument(
+        "--design",
+        help="the trials of every campaign, e.g. none,none@70,noneb4,J7x2,J13 (default: "
+        f"{DESIGN}, or the effect's own: {DESIGNS})",
+    )
+    parser.add_argument(
+        "--truth-model",
+        choices=TRUTH_MODELS,
+        default="drake",
+        help="what makes the campaigns (default: drake, this project's model)",
+    )
     parser.add_argument("--record-after-s", type=float, default=0.0, help="the recording starts this late")
-    parser.add_argument("--candidates", default="physical",
-                        help="what the diagnosis considers: physical (default), sensor, or effect names (comma list)")
-    parser.add_argument("--start-rates", choices=START_MODES, default="rest",
-                        help="the trials' head rates at t = 0: rest (the protocol's convention) or fit (nuisance "
-                             "coordinates of every fit)")
+    parser.add_argument(
+        "--candidates",
+        default="physical",
+        help="what the diagnosis considers: physical (default), sensor, or effect names (comma list)",
+    )
+    parser.add_argument(
+        "--start-rates",
+        choices=START_MODES,
+        default="rest",
+        help="the trials' head rates at t = 0: rest (the protocol's convention) or fit (nuisance "
+        "coordinates of every fit)",
+    )
     parser.add_argument("--out", type=Path, default=Path("benchmarks/out/diagnosis.jsonl"))
     args = parser.parse_args()
     made = (args.truth_model, args.record_after_s, args.candidates, args.start_rates)
@@ -131,8 +189,12 @@ def main():
     if args.out.exists():
         for line in args.out.read_text().splitlines():
             row = json.loads(line)
-            if (row.get("truth_model", "drake"), row.get("record_after_s", 0.0), row.get("candidates", "physical"),
-                    row.get("start_rates", "rest")) == made:  # a study per truth, candidate set and start
+            if (
+                row.get("truth_model", "drake"),
+                row.get("record_after_s", 0.0),
+                row.get("candidates", "physical"),
+                row.get("start_rates", "rest"),
+            ) == made:  # a study per truth, candidate set and start
                 done[(row["effect"], row["strength"], row["seed"], row.get("design", DESIGN))] = row
     effects = args.effects.split(",")
     unknown = [e for e in effects if e not in REFERENCE]
@@ -141,8 +203,10 @@ def main():
     if args.truth_model == "reference":
         inexpressible = [e for e in effects if REFERENCE[e][0] not in REFERENCE_EFFECTS]
         if inexpressible:
-            raise SystemExit(f"--effects: the reference model cannot make {inexpressible[0]!r} (it makes: "
-                             f"{', '.join(e for e in REFERENCE if REFERENCE[e][0] in REFERENCE_EFFECTS)})")
+            raise SystemExit(
+                f"--effects: the reference model cannot make {inexpressible[0]!r} (it makes: "
+                f"{', '.join(e for e in REFERENCE if REFERENCE[e][0] in REFERENCE_EFFECTS)})"
+            )
     try:
         strengths = [float(k) for k in args.strengths.split(",")]
     except ValueError:
@@ -152,14 +216,17 @@ def main():
         domain = parameter(key)
         for k in strengths:
             if not domain.lower <= reference * k <= domain.upper:
-                raise SystemExit(f"--strengths: {args.strengths!r} puts {key} at {reference * k:g}, outside "
-                                 f"[{domain.lower:g}, {domain.upper:g}] (its reference strength is {reference:g})")
+                raise SystemExit(
+                    f"--strengths: {args.strengths!r} puts {key} at {reference * k:g}, outside "
+                    f"[{domain.lower:g}, {domain.upper:g}] (its reference strength is {reference:g})"
+                )
     try:
         candidate_names(args.candidates.split(","))
     except ValueError as error:
         raise SystemExit(f"--candidates: {error}") from None
-    jobs = [(e, k, s, args.design or DESIGNS.get(e, DESIGN)) for e in effects for k in strengths
-            for s in range(args.seeds)]
+    jobs = [
+        (e, k, s, args.design or DESIGNS.get(e, DESIGN)) for e in effects for k in strengths for s in range(args.seeds)
+    ]
     designs = list(dict.fromkeys(j[3] for j in jobs))
     for design in designs:
         parse_design(design)  # a bad design stops here, with its one-line error, before any campaign runs
@@ -168,17 +235,33 @@ def main():
         if job in done:
             continue
         effect, strength, seed, design = job
-        row = one(effect, strength, seed, args.time_limit_s, args.workers,
-                  FRICTION_NAMES if args.hold_friction else (), design, *made)
+        row = one(
+            effect,
+            strength,
+            seed,
+            args.time_limit_s,
+            args.workers,
+            FRICTION_NAMES if args.hold_friction else (),
+            design,
+            *made,
+        )
         done[job] = row
         with args.out.open("a") as f:
             f.write(json.dumps(row) + "\n")
-        print(f"[{n + 1}/{len(jobs)}] {effect or 'no effect'} x{strength:g} seed {seed} ({design}): "
-              f"{row['verdict']}, accepted {row['accepted']}, first {row['first']}, {row['wall_s']:.0f} s", flush=True)
-    print(f"\ncampaigns made by {args.truth_model}" + (f", recorded {args.record_after_s:g} s late" if args.record_after_s else "")
-          + f"; candidates: {args.candidates}")
-    print(f"{'hidden effect':<34}{'design':>11}{'strength':>9}{'accepted':>10}{'first':>7}{'in CI':>7}{'wrong':>7}"
-          f"{'partial':>9}{'right':>7}{'mean s':>8}")
+        print(
+            f"[{n + 1}/{len(jobs)}] {effect or 'no effect'} x{strength:g} seed {seed} ({design}): "
+            f"{row['verdict']}, accepted {row['accepted']}, first {row['first']}, {row['wall_s']:.0f} s",
+            flush=True,
+        )
+    print(
+        f"\ncampaigns made by {args.truth_model}"
+        + (f", recorded {args.record_after_s:g} s late" if args.record_after_s else "")
+        + f"; candidates: {args.candidates}"
+    )
+    print(
+        f"{'hidden effect':<34}{'design':>11}{'strength':>9}{'accepted':>10}{'first':>7}{'in CI':>7}{'wrong':>7}"
+        f"{'partial':>9}{'right':>7}{'mean s':>8}"
+    )
     groups = {}
     for (effect, strength, _, design), row in done.items():
         groups.setdefault((effect, strength, design), []).append(row)
@@ -189,10 +272,15 @@ def main():
         inside = sum(bool(r["inside_interval"]) for r in rows) if effect else 0
         wrong = sum(any(a != effect for a in r["accepted"]) for r in rows)
         partial = sum(bool(r.get("partial")) for r in rows)
-        right = sum(r["verdict"] == ("effect_found" if effect else "no_missing_effect")
-                    and set(r["accepted"]) == ({effect} if effect else set()) for r in rows)  # the whole answer
-        print(f"{effect or 'none (false alarms)':<34}{design:>11}{strength:>9g}{hit:>7}/{n}{first:>5}/{n}"
-              f"{inside:>5}/{n}{wrong:>5}/{n}{partial:>7}/{n}{right:>5}/{n}{sum(r['wall_s'] for r in rows) / n:>8.0f}")
+        right = sum(
+            r["verdict"] == ("effect_found" if effect else "no_missing_effect")
+            and set(r["accepted"]) == ({effect} if effect else set())
+            for r in rows
+        )  # the whole answer
+        print(
+            f"{effect or 'none (false alarms)':<34}{design:>11}{strength:>9g}{hit:>7}/{n}{first:>5}/{n}"
+            f"{inside:>5}/{n}{wrong:>5}/{n}{partial:>7}/{n}{right:>5}/{n}{sum(r['wall_s'] for r in rows) / n:>8.0f}"
+        )
 
 
 if __name__ == "__main__":

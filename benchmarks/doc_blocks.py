@@ -23,7 +23,7 @@ def read_block(path: Path, name: str, writer: str) -> str:
     """The text between the block's markers."""
     begin, end = markers(name, writer)
     text = path.read_text()
-    return text[text.index(begin) + len(begin):text.index(end)].strip("\n")
+    return text[text.index(begin) + len(begin) : text.index(end)].strip("\n")
 
 
 def write_block(path: Path, name: str, writer: str, body: str) -> None:

@@ -29,47 +29,63 @@ import numpy as np
 from rc1_drake.config import FRICTION_NAMES, Friction, Gait, Stop
 from rc1_drake.executor import make_executor
 from rc1_drake.identify import Eq6Objective, avs, fit_program, screen
-from rc1_drake.sysid.input_noise import INPUT_NOISE_SAMPLES
-from rc1_drake.sysid.objective import CampaignResiduals
-from rc1_drake.sysid.residual import replay_residual
-from rc1_drake.sysid.stats import uncertainty
-from rc1_drake.sysid.parameters import PAPER_MANUAL
 from rc1_drake.measurements import load_campaign
 from rc1_drake.synthesize import IDENTIFICATION_DESIGN, Case, synthesize_campaign
+from rc1_drake.sysid.input_noise import INPUT_NOISE_SAMPLES
+from rc1_drake.sysid.objective import CampaignResiduals
+from rc1_drake.sysid.parameters import PAPER_MANUAL
+from rc1_drake.sysid.residual import replay_residual
+from rc1_drake.sysid.stats import uncertainty
 
 DESIGNS = {
     "no failure + joint 7, 140 deg/s": [Case([], 1), Case([7], 1)],
-    "+ no failure at 70 and 210 deg/s": [Case([], 1), Case([7], 1), Case([], 1, gait=Gait(frequency_deg_s=70.0)),
-                                         Case([], 1, gait=Gait(frequency_deg_s=210.0))],
+    "+ no failure at 70 and 210 deg/s": [
+        Case([], 1),
+        Case([7], 1),
+        Case([], 1, gait=Gait(frequency_deg_s=70.0)),
+        Case([], 1, gait=Gait(frequency_deg_s=210.0)),
+    ],
     "+ joint 7 at 210, joint 13 (IDENTIFICATION)": IDENTIFICATION_DESIGN,
     "+ joint 2 (circling)": IDENTIFICATION_DESIGN + [Case([2], 1)],
 }
 
 
 def campaign(folder, design, args):
-    synthesize_campaign(folder, design=design, seed=args.seed,
-                        stop=Stop(line_x_m=None, revolutions=None, time_limit_s=args.time_limit_s))
+    synthesize_campaign(
+        folder,
+        design=design,
+        seed=args.seed,
+        stop=Stop(line_x_m=None, revolutions=None, time_limit_s=args.time_limit_s),
+    )
     return load_campaign(folder)
 
 
 def design_study(args, executor, workdir):
-    print(f"\n1. relative standard error at the truth, % ({args.time_limit_s:g} s trials, seed {args.seed}, "
-          f"input noise from {args.input_noise_samples} resampled replays per trial); * = identifiable (< 30%)")
-    print(f"{'design':45}" + "".join(f"{n:>10}" for n in FRICTION_NAMES) + f"{'replay rms':>11}{'sims':>6}{'wall s':>8}")
+    print(
+        f"\n1. relative standard error at the truth, % ({args.time_limit_s:g} s trials, seed {args.seed}, "
+        f"input noise from {args.input_noise_samples} resampled replays per trial); * = identifiable (< 30%)"
+    )
+    print(
+        f"{'design':45}" + "".join(f"{n:>10}" for n in FRICTION_NAMES) + f"{'replay rms':>11}{'sims':>6}{'wall s':>8}"
+    )
     for k, (name, design) in enumerate(DESIGNS.items()):
         start = time.perf_counter()
         trials = campaign(workdir / f"design{k}", design, args).trials
-        spread = uncertainty(CampaignResiduals(trials, executor=executor), Friction(),
-                             input_noise_samples=args.input_noise_samples)
-        cells = "".join(f"{(100 * se / v if se != float('inf') else float('inf')):>9.0f}{'*' if ok else ' '}"
-                        for v, se, ok in zip(spread.values, spread.standard_errors, spread.identifiable, strict=True))
+        spread = uncertainty(
+            CampaignResiduals(trials, executor=executor), Friction(), input_noise_samples=args.input_noise_samples
+        )
+        cells = "".join(
+            f"{(100 * se / v if se != float('inf') else float('inf')):>9.0f}{'*' if ok else ' '}"
+            for v, se, ok in zip(spread.values, spread.standard_errors, spread.identifiable, strict=True)
+        )
         worst = max(float(np.sqrt(np.mean(replay_residual(t, Friction()) ** 2))) for t in trials)
-        print(f"{name:45}{cells}{worst:>11.2f}{spread.simulations:>6}"
-              f"{time.perf_counter() - start:>8.0f}", flush=True)
+        print(f"{name:45}{cells}{worst:>11.2f}{spread.simulations:>6}{time.perf_counter() - start:>8.0f}", flush=True)
         # Standard errors fall as 1/sqrt(data): trial-seconds of this design that a 10% error would need.
         seconds = len(trials) * args.time_limit_s
-        need = "".join(f"{seconds * (100 * se / v / 10) ** 2 if se != float('inf') else float('inf'):>10.3g}"
-                       for v, se in zip(spread.values, spread.standard_errors, strict=True))
+        need = "".join(
+            f"{seconds * (100 * se / v / 10) ** 2 if se != float('inf') else float('inf'):>10.3g}"
+            for v, se in zip(spread.values, spread.standard_errors, strict=True)
+        )
         print(f"{'  trial-seconds for a 10% standard error':45}{need}", flush=True)
 
 
@@ -84,35 +100,51 @@ def recovery_and_cost(args, executor, workdir, only):
             start = time.perf_counter()
             history = []
             fitted = screen(residuals, PAPER_MANUAL)[0] if screened else None
-            fit = fit_program(residuals, start=PAPER_MANUAL, parameters=fitted, max_iterations=args.program_iterations,
-                              on_iteration=lambda f, sims, h=history: h.append((sims, eq6(f))))
+            fit = fit_program(
+                residuals,
+                start=PAPER_MANUAL,
+                parameters=fitted,
+                max_iterations=args.program_iterations,
+                on_iteration=lambda f, sims, h=history: h.append((sims, eq6(f))),
+            )
             wall = time.perf_counter() - start
             spread = uncertainty(residuals, fit.friction)
             held = [p.name for p in fitted if p.frozen] if screened else []
-            print(f"\n2. program fit from the manual values, {'screened' if screened else 'all five fitted'}, "
-                  f"{len(trials)} trials ({fit.iterations} iterations, {residuals.simulations} trial simulations "
-                  f"with the screening, {wall:.0f} s wall)")
+            print(
+                f"\n2. program fit from the manual values, {'screened' if screened else 'all five fitted'}, "
+                f"{len(trials)} trials ({fit.iterations} iterations, {residuals.simulations} trial simulations "
+                f"with the screening, {wall:.0f} s wall)"
+            )
             print(f"{'coefficient':12}{'truth':>8}{'result':>9}{'error %':>9}{'std err %':>11}  fitted")
-            for name, value, se, ok in zip(spread.names, spread.values, spread.standard_errors, spread.identifiable,
-                                           strict=True):
+            for name, value, se, ok in zip(
+                spread.names, spread.values, spread.standard_errors, spread.identifiable, strict=True
+            ):
                 t = getattr(truth, name)
-                print(f"{name:12}{t:>8.4g}{value:>9.4g}{100 * (value - t) / t:>9.1f}{100 * se / value:>11.1f}  "
-                      f"{'held at start' if name in held else 'yes'}{'' if ok else ' (not identifiable at the result)'}")
+                print(
+                    f"{name:12}{t:>8.4g}{value:>9.4g}{100 * (value - t) / t:>9.1f}{100 * se / value:>11.1f}  "
+                    f"{'held at start' if name in held else 'yes'}{'' if ok else ' (not identifiable at the result)'}"
+                )
             scores["screened" if screened else "program"] = history
-            print("mean Eq. 6 error after each iteration (trial simulations so far): "
-                  + ", ".join(f"{e:.2f}% ({s})" for s, e in history))
+            print(
+                "mean Eq. 6 error after each iteration (trial simulations so far): "
+                + ", ".join(f"{e:.2f}% ({s})" for s, e in history)
+            )
     if only in (None, "cost"):
         start = time.perf_counter()
         objective = Eq6Objective(trials, executor=executor)
         result = avs(objective, start=PAPER_MANUAL, iterations=args.avs_iterations)
         wall = time.perf_counter() - start
-        print(f"\n3. AVS from the manual values, {args.avs_iterations} iterations: Eq. 6 error "
-              f"{result.start_error:.2f}% -> {result.error:.2f}%, {result.simulations} trial simulations, {wall:.0f} s")
+        print(
+            f"\n3. AVS from the manual values, {args.avs_iterations} iterations: Eq. 6 error "
+            f"{result.start_error:.2f}% -> {result.error:.2f}%, {result.simulations} trial simulations, {wall:.0f} s"
+        )
         print(result.table())
         for name, history in scores.items():
             reached = next((s for s, e in history if e <= result.error), None)
-            print(f"{name} fit reached AVS's error after "
-                  f"{'(never, within its iterations)' if reached is None else f'{reached} trial simulations'}")
+            print(
+                f"{name} fit reached AVS's error after "
+                f"{'(never, within its iterations)' if reached is None else f'{reached} trial simulations'}"
+            )
         print(f"the truth's own mean Eq. 6 error on these trials: {eq6(truth):.2f}%")
 
 
@@ -124,11 +156,17 @@ def main():
     parser.add_argument("--avs-iterations", type=int, default=10)
     parser.add_argument("--program-iterations", type=int, default=10)
     parser.add_argument("--only", choices=["design", "recovery", "cost"])
-    parser.add_argument("--input-noise-samples", type=int, default=INPUT_NOISE_SAMPLES,
-                        help="resampled replays per trial for the input-noise part of the intervals (0: leave it out)")
+    parser.add_argument(
+        "--input-noise-samples",
+        type=int,
+        default=INPUT_NOISE_SAMPLES,
+        help="resampled replays per trial for the input-noise part of the intervals (0: leave it out)",
+    )
     args = parser.parse_args()
-    print(f"machine: {platform.processor() or platform.machine()}, {args.workers} workers, "
-          f"python {platform.python_version()}")
+    print(
+        f"machine: {platform.processor() or platform.machine()}, {args.workers} workers, "
+        f"python {platform.python_version()}"
+    )
     with tempfile.TemporaryDirectory() as tmp, make_executor(workers=args.workers) as executor:
         workdir = Path(tmp)
         if args.only in (None, "design"):

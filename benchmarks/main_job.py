@@ -40,25 +40,50 @@ def mean_eq6(report) -> float:
 def table(before, where, diagnosis: dict, model, after, truth: dict, wall_s: float) -> str:
     worst = where.to_json()["trials"][0]
     final = diagnosis["final_coordinates"]  # the written model's values and standard errors
-    found = "; ".join(f"{k} = {final[k][0]:.2f} +- {Z95 * final[k][1]:.2f} (95%)" for k in diagnosis["model"]["effects"]
-                      if k in final) or "nothing"
+    found = (
+        "; ".join(
+            f"{k} = {final[k][0]:.2f} +- {Z95 * final[k][1]:.2f} (95%)"
+            for k in diagnosis["model"]["effects"]
+            if k in final
+        )
+        or "nothing"
+    )
     hidden = ", ".join(f"{k} = {v:g}" for k, v in truth["effects"].items()) or "nothing"
     passes = worst["exceeds_2cm_at_s"]
     rows = [
-        ("1. `rc1 compare data/paper_campaign`", f"the paper's model misses the final head positions by {mean_eq6(before):.2f}% "
-         f"of the distance travelled (mean Eq. 6 over {len(before.trials)} trials)"),
-        ("2. where it fails (printed by compare)", f"worst trial {worst['trial_id']} ({worst['case']}, {worst['eq6_error_pct']:.1f}%): "
-         f"its camera path passes 2 cm " + (f"{passes:.2f} s after the start" if passes is not None else "never")
-         + f"; yaw-rate residual lag-1 autocorrelation {worst['yaw_rate_lag1']:.2f} (white: 0)"),
-        ("3. `rc1 diagnose data/paper_campaign`", f"`{diagnosis['verdict']}`: accepted {', '.join(diagnosis['accepted_effects']) or 'nothing'}, "
-         f"{found}; hidden in the truth: {hidden} "
-         f"({diagnosis['simulations']} replays, {wall_s / 60:.1f} min)"),
-        ("4. add it: the model file", "effects " + (", ".join(f"{k} = {v:.3g}" for k, v in model.effects.items()) or "none")
-         + "; friction refitted: " + ", ".join(f"{k} = {v:.3g}" for k, v in vars(model.friction).items())),
+        (
+            "1. `rc1 compare data/paper_campaign`",
+            f"the paper's model misses the final head positions by {mean_eq6(before):.2f}% "
+            f"of the distance travelled (mean Eq. 6 over {len(before.trials)} trials)",
+        ),
+        (
+            "2. where it fails (printed by compare)",
+            f"worst trial {worst['trial_id']} ({worst['case']}, {worst['eq6_error_pct']:.1f}%): "
+            f"its camera path passes 2 cm "
+            + (f"{passes:.2f} s after the start" if passes is not None else "never")
+            + f"; yaw-rate residual lag-1 autocorrelation {worst['yaw_rate_lag1']:.2f} (white: 0)",
+        ),
+        (
+            "3. `rc1 diagnose data/paper_campaign`",
+            f"`{diagnosis['verdict']}`: accepted {', '.join(diagnosis['accepted_effects']) or 'nothing'}, "
+            f"{found}; hidden in the truth: {hidden} "
+            f"({diagnosis['simulations']} replays, {wall_s / 60:.1f} min)",
+        ),
+        (
+            "4. add it: the model file",
+            "effects "
+            + (", ".join(f"{k} = {v:.3g}" for k, v in model.effects.items()) or "none")
+            + "; friction refitted: "
+            + ", ".join(f"{k} = {v:.3g}" for k, v in vars(model.friction).items()),
+        ),
         ("5. `rc1 compare ... --model-file` it", f"mean Eq. 6 {mean_eq6(before):.2f}% -> {mean_eq6(after):.2f}%"),
     ]
-    lines = [f"Measured by `python {WRITER}` (last run {time.strftime('%Y-%m-%d')}):", "",
-             "| step | on the shipped campaign |", "|---|---|"]
+    lines = [
+        f"Measured by `python {WRITER}` (last run {time.strftime('%Y-%m-%d')}):",
+        "",
+        "| step | on the shipped campaign |",
+        "|---|---|",
+    ]
     return "\n".join(lines + [f"| {step} | {text} |" for step, text in rows])
 
 
@@ -74,8 +99,18 @@ def main():
     before = compare_campaign(campaign)
     where = where_it_fails(before, campaign)
     began = time.perf_counter()
-    code = rc1(["diagnose", str(CAMPAIGN), "--json", str(args.out / "diagnose.json"), "--plots", str(args.out / "plots"),
-                "--out", str(args.out / "model.yaml")])
+    code = rc1(
+        [
+            "diagnose",
+            str(CAMPAIGN),
+            "--json",
+            str(args.out / "diagnose.json"),
+            "--plots",
+            str(args.out / "plots"),
+            "--out",
+            str(args.out / "model.yaml"),
+        ]
+    )
     if code:
         raise SystemExit(f"rc1 diagnose ended with exit code {code}")
     wall = time.perf_counter() - began

@@ -31,7 +31,10 @@ def main():
     parser.add_argument("--no-reference", action="store_true", help="skip the (slow) SciPy reference")
     args = parser.parse_args()
     print(f"machine: {platform.processor() or platform.machine()}, python {platform.python_version()}")
-    header = f"{'case':10} {'sim s':>6} {'wall s':>7} {'x real':>7} {'dt/2 %':>7} {'eps/2 %':>8} {'ref %':>6} {'ref wall s':>10}"
+    header = (
+        f"{'case':10} {'sim s':>6} {'wall s':>7} {'x real':>7} {'dt/2 %':>7} {'eps/2 %':>8} {'ref %':>6} "
+        f"{'ref wall s':>10}"
+    )
     print(header)
     for name, failures in CASES.items():
         scenario = Scenario(failures=failures)
@@ -40,7 +43,9 @@ def main():
         run = min(runs, key=lambda r: r.wall_time_s)
         n = scenario.numerics
         finer = dataclasses.replace(scenario, numerics=dataclasses.replace(n, time_step_s=n.time_step_s / 2))
-        sharper = dataclasses.replace(scenario, numerics=dataclasses.replace(n, sgn_smoothing_m_s=n.sgn_smoothing_m_s / 2))
+        sharper = dataclasses.replace(
+            scenario, numerics=dataclasses.replace(n, sgn_smoothing_m_s=n.sgn_smoothing_m_s / 2)
+        )
         fine = Session(finer).simulate(finer)
         sharp = session.simulate(sharper)
         start, end = run.head_xy[0], run.head_xy[-1]
@@ -48,9 +53,11 @@ def main():
         if not args.no_reference:
             ref = simulate_reference(scenario, run.geometry, joint_path=(run.t, run.q), rtol=1e-5, atol=1e-7)
             ref_pct, ref_wall = moved(end, ref.head_xy[-1], start), ref.wall_time_s
-        print(f"{name:10} {run.t[-1]:6.2f} {run.wall_time_s:7.2f} {run.t[-1] / run.wall_time_s:7.1f} "
-              f"{moved(end, fine.head_xy[-1], start):7.2f} {moved(end, sharp.head_xy[-1], start):8.2f} "
-              f"{ref_pct:6.2f} {ref_wall:10.1f}")
+        print(
+            f"{name:10} {run.t[-1]:6.2f} {run.wall_time_s:7.2f} {run.t[-1] / run.wall_time_s:7.1f} "
+            f"{moved(end, fine.head_xy[-1], start):7.2f} {moved(end, sharp.head_xy[-1], start):8.2f} "
+            f"{ref_pct:6.2f} {ref_wall:10.1f}"
+        )
 
 
 if __name__ == "__main__":

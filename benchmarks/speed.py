@@ -32,6 +32,7 @@ from pathlib import Path
 
 import numpy as np
 from doc_blocks import check_block, read_block, write_block
+from single_run import moved  # benchmarks/ is on the path when this script runs
 
 from rc1_drake.config import REPO_ROOT, Failure, Scenario, Stop
 from rc1_drake.engine import use_engine
@@ -39,7 +40,6 @@ from rc1_drake.engine.session import CompiledSession
 from rc1_drake.executor import make_executor
 from rc1_drake.protocol import Session
 from rc1_drake.reference import simulate_reference
-from single_run import moved  # benchmarks/ is on the path when this script runs
 
 SECTIONS = ("single", "replay", "batch", "identification", "diagnosis")
 TRIAL = REPO_ROOT / "data" / "paper_campaign" / "nominal_1.json"
@@ -63,16 +63,23 @@ def single(args) -> list:
         apart = float(moved(run.head_xy[-1], drake.head_xy[-1], run.head_xy[0]))
         ref = simulate_reference(scenario, run.geometry, joint_path=(run.t, run.q), rtol=1e-5, atol=1e-7)
         speed = run.t[-1] / run.wall_time_s
-        print(f"single {name}: {run.t[-1]:.2f} s simulated in {run.wall_time_s:.3f} s compiled ({speed:.0f}x real "
-              f"time), {drake.wall_time_s:.2f} s Drake; engines {apart:.1e}% apart; {error:.2f}% from the run at "
-              f"dt/4; SciPy reference {ref.wall_time_s:.1f} s", flush=True)
+        print(
+            f"single {name}: {run.t[-1]:.2f} s simulated in {run.wall_time_s:.3f} s compiled ({speed:.0f}x real "
+            f"time), {drake.wall_time_s:.2f} s Drake; engines {apart:.1e}% apart; {error:.2f}% from the run at "
+            f"dt/4; SciPy reference {ref.wall_time_s:.1f} s",
+            flush=True,
+        )
         rows += [
             (f"{name} run, Drake wall (s)", drake.wall_time_s, "", None),
             (f"{name} run, compiled wall (s)", run.wall_time_s, "<= 0.1", run.wall_time_s <= 0.1),
             (f"{name} run, Drake / compiled", drake.wall_time_s / run.wall_time_s, "", None),
             (f"{name} run, compiled x real time", speed, ">= 100", speed >= 100),
-            (f"{name} run, SciPy reference / compiled", ref.wall_time_s / run.wall_time_s, ">= 100",
-             ref.wall_time_s / run.wall_time_s >= 100),
+            (
+                f"{name} run, SciPy reference / compiled",
+                ref.wall_time_s / run.wall_time_s,
+                ">= 100",
+                ref.wall_time_s / run.wall_time_s >= 100,
+            ),
             (f"{name} run, engines apart (% of distance)", apart, "<= 0.2", apart <= 0.2),
             (f"{name} run, from converged (%)", error, "<= 1", error <= 1.0),
         ]
@@ -80,9 +87,9 @@ def single(args) -> list:
 
 
 def replay(args) -> list:
-    from rc1_drake.measurements import load_trial
     from rc1_drake.config import FRICTION_NAMES
     from rc1_drake.effects import LIBRARY
+    from rc1_drake.measurements import load_trial
     from rc1_drake.replay import Replayer, replay_scenario
 
     trial = load_trial(TRIAL)
@@ -99,18 +106,26 @@ def replay(args) -> list:
     # Every coordinate a diagnosis fits that has a sensitivity: the friction and the differentiable effects'.
     names = [*FRICTION_NAMES, *(p.key for e in LIBRARY.values() if e.differentiable for p in e.coordinate_space())]
     replayer.session.simulate(scenario, initial=replayer.initial, sensitivities=names[:1])
-    derivatives = replayer.session.simulate(scenario, initial=replayer.initial,
-                                            sensitivities=names).wall_time_s / run.wall_time_s
+    derivatives = (
+        replayer.session.simulate(scenario, initial=replayer.initial, sensitivities=names).wall_time_s / run.wall_time_s
+    )
     apart = float(moved(run.head_xy[-1], drake.head_xy[-1], run.head_xy[0]))
-    print(f"replay: {run.t[-1]:.2f} s trial in {run.wall_time_s:.3f} s compiled, {drake.wall_time_s:.2f} s Drake "
-          f"({apart:.1e}% apart); 8 bootstrap replays in {batch:.2f} s", flush=True)
+    print(
+        f"replay: {run.t[-1]:.2f} s trial in {run.wall_time_s:.3f} s compiled, {drake.wall_time_s:.2f} s Drake "
+        f"({apart:.1e}% apart); 8 bootstrap replays in {batch:.2f} s",
+        flush=True,
+    )
     return [
         ("10 s replay, Drake wall (s)", drake.wall_time_s, "", None),
         ("10 s replay, compiled wall (s)", run.wall_time_s, "<= 0.15", run.wall_time_s <= 0.15),
         ("10 s replay, Drake / compiled", drake.wall_time_s / run.wall_time_s, "", None),
         ("8 bootstrap replays, compiled, one process (s)", batch, "<= 1", batch <= 1.0),
-        (f"10 s replay with d/d all {len(names)} friction and effect coordinates / replay", derivatives, "<= 3",
-         derivatives <= 3),
+        (
+            f"10 s replay with d/d all {len(names)} friction and effect coordinates / replay",
+            derivatives,
+            "<= 3",
+            derivatives <= 3,
+        ),
     ]
 
 
@@ -127,8 +142,11 @@ def batch(args) -> list:
             wall = time.perf_counter() - start
             failed = sum(r["status"] != "ok" for r in rows)
             rate[workers] = len(jobs) / wall
-            print(f"batch: {len(jobs)} runs on {workers} worker(s) in {wall:.1f} s ({rate[workers]:.2f} runs/s, "
-                  f"{failed} failed)", flush=True)
+            print(
+                f"batch: {len(jobs)} runs on {workers} worker(s) in {wall:.1f} s ({rate[workers]:.2f} runs/s, "
+                f"{failed} failed)",
+                flush=True,
+            )
     wall = len(jobs) / rate[args.workers]
     scaling = rate[args.workers] / rate[1]
     return [
@@ -141,14 +159,18 @@ def batch(args) -> list:
 
 def identification(args) -> list:
     from rc1_drake.identify import Eq6Objective, avs, fit_program, identify_equation_error, screen
-    from rc1_drake.sysid.objective import CampaignResiduals
-    from rc1_drake.sysid.parameters import PAPER_MANUAL
     from rc1_drake.measurements import load_campaign
     from rc1_drake.synthesize import IDENTIFICATION_DESIGN, synthesize_campaign
+    from rc1_drake.sysid.objective import CampaignResiduals
+    from rc1_drake.sysid.parameters import PAPER_MANUAL
 
     with tempfile.TemporaryDirectory() as tmp, make_executor(workers=args.workers) as executor:
-        synthesize_campaign(Path(tmp) / "c", design=IDENTIFICATION_DESIGN, seed=8,
-                            stop=Stop(line_x_m=None, revolutions=None, time_limit_s=3.0))
+        synthesize_campaign(
+            Path(tmp) / "c",
+            design=IDENTIFICATION_DESIGN,
+            seed=8,
+            stop=Stop(line_x_m=None, revolutions=None, time_limit_s=3.0),
+        )
         campaign = load_campaign(Path(tmp) / "c")
         score = Eq6Objective(campaign.trials, executor=executor)  # scoring only: not counted
 
@@ -156,8 +178,11 @@ def identification(args) -> list:
         objective = Eq6Objective(campaign.trials, executor=executor)
         result = avs(objective, start=PAPER_MANUAL, iterations=10)
         avs_wall, target = time.perf_counter() - start, result.error
-        print(f"identification: AVS {result.start_error:.2f}% -> {target:.2f}% in {result.simulations} trial "
-              f"simulations, {avs_wall:.0f} s", flush=True)
+        print(
+            f"identification: AVS {result.start_error:.2f}% -> {target:.2f}% in {result.simulations} trial "
+            f"simulations, {avs_wall:.0f} s",
+            flush=True,
+        )
 
         start = time.perf_counter()
         residuals = CampaignResiduals(campaign.trials, executor=executor)
@@ -170,21 +195,31 @@ def identification(args) -> list:
 
         fit_program(residuals, start=PAPER_MANUAL, parameters=fitted, max_iterations=10, on_iteration=on_iteration)
         program = reached[0] if reached else (residuals.simulations, float("inf"))
-        print(f"identification: program fit reached {target:.2f}% after "
-              f"{program[0] if reached else 'never (of ' + str(program[0]) + ')'} trial simulations", flush=True)
+        print(
+            f"identification: program fit reached {target:.2f}% after "
+            f"{program[0] if reached else 'never (of ' + str(program[0]) + ')'} trial simulations",
+            flush=True,
+        )
 
         start = time.perf_counter()
         equation = identify_equation_error(campaign)
         eq_wall = time.perf_counter() - start
         eq_error = score(equation.friction)
-        print(f"identification: equation error {eq_error:.2f}% with 0 trial simulations in {eq_wall:.1f} s "
-              f"({equation.samples_used} of {equation.samples} camera samples passed its slip gate)", flush=True)
+        print(
+            f"identification: equation error {eq_error:.2f}% with 0 trial simulations in {eq_wall:.1f} s "
+            f"({equation.samples_used} of {equation.samples} camera samples passed its slip gate)",
+            flush=True,
+        )
     sims = result.simulations
     return [
         ("AVS (10 iterations): trial simulations", sims, "", None),
         ("AVS: wall (s)", avs_wall, "", None),
-        ("program fit: simulations to AVS's error", program[0] if reached else float("inf"), f"<= {sims / 5:.0f}",
-         bool(reached) and program[0] <= sims / 5),
+        (
+            "program fit: simulations to AVS's error",
+            program[0] if reached else float("inf"),
+            f"<= {sims / 5:.0f}",
+            bool(reached) and program[0] <= sims / 5,
+        ),
         ("program fit: wall to AVS's error (s)", program[1], "", None),
         ("equation error: simulations (Eq. 6 error reached)", 0, f"<= {sims / 5:.0f}", eq_error <= target),
         ("equation error: Eq. 6 error (%) vs AVS's", eq_error, f"<= {target:.2f}", eq_error <= target),
@@ -199,10 +234,15 @@ def diagnosis(args) -> list:
     start = time.perf_counter()
     result = diagnose(campaign, workers=args.workers)
     wall = time.perf_counter() - start
-    print(f"diagnosis: {len(campaign.trials)} trials, {result.simulations} replays, {wall:.0f} s, verdict "
-          f"{result.verdict}", flush=True)
-    return [(f"diagnosis, every candidate, {len(campaign.trials)} trials (min)", wall / 60, "<= 3", wall <= 180),
-            ("diagnosis: replays", result.simulations, "", None)]
+    print(
+        f"diagnosis: {len(campaign.trials)} trials, {result.simulations} replays, {wall:.0f} s, verdict "
+        f"{result.verdict}",
+        flush=True,
+    )
+    return [
+        (f"diagnosis, every candidate, {len(campaign.trials)} trials (min)", wall / 60, "<= 3", wall <= 180),
+        ("diagnosis: replays", result.simulations, "", None),
+    ]
 
 
 SPEED_PAGE, SPEED_BLOCK, WRITER = REPO_ROOT / "docs" / "speed.md", "speed-table", "benchmarks/speed.py --markdown"
@@ -215,8 +255,12 @@ def write_speed_table(rows, machine) -> None:
     old = read_block(SPEED_PAGE, SPEED_BLOCK, WRITER).splitlines()
     kept = [line for line in old if line.startswith("| ") and not line.startswith("| figure")]
     table = [fresh.pop(line.split(" | ")[0][2:], line) for line in kept] + list(fresh.values())
-    lines = [f"Measured on {machine} by `python benchmarks/speed.py --markdown` (last run "
-             f"{time.strftime('%Y-%m-%d')}):", "", "| figure | measured | target | met |", "|---|---|---|---|"]
+    lines = [
+        f"Measured on {machine} by `python benchmarks/speed.py --markdown` (last run {time.strftime('%Y-%m-%d')}):",
+        "",
+        "| figure | measured | target | met |",
+        "|---|---|---|---|",
+    ]
     write_block(SPEED_PAGE, SPEED_BLOCK, WRITER, "\n".join(lines + table))
 
 
@@ -234,8 +278,9 @@ def main():
         parser.error(f"--only: unknown section {unknown[0]!r} (choose from {', '.join(SECTIONS)})")
     if args.markdown:
         check_block(SPEED_PAGE, SPEED_BLOCK, WRITER)
-    machine = (f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
-               f"python {platform.python_version()}")
+    machine = (
+        f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores, python {platform.python_version()}"
+    )
     print(f"machine: {machine}")
     use_engine("compiled")  # batch sections: the compiled engine, as the batch commands
     rows = []
@@ -248,9 +293,19 @@ def main():
         write_speed_table(rows, machine)
     if args.json:
         Path(args.json).parent.mkdir(parents=True, exist_ok=True)
-        Path(args.json).write_text(json.dumps({"machine": machine, "rows": [
-            {"figure": n, "measured": float(v), "target": t, "met": None if m is None else bool(m)}
-            for n, v, t, m in rows]}, indent=1) + "\n")
+        Path(args.json).write_text(
+            json.dumps(
+                {
+                    "machine": machine,
+                    "rows": [
+                        {"figure": n, "measured": float(v), "target": t, "met": None if m is None else bool(m)}
+                        for n, v, t, m in rows
+                    ],
+                },
+                indent=1,
+            )
+            + "\n"
+        )
 
 
 if __name__ == "__main__":

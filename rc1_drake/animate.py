@@ -99,8 +99,10 @@ def recorded_frames(html: str) -> dict:
     Decodes Meshcat's embedded commands (msgpack), so that a test can check what would be played."""
     import msgpack
 
-    commands = [msgpack.unpackb(base64.b64decode(b), strict_map_key=False)
-                for b in re.findall(r'data:application/octet-binary;base64,([A-Za-z0-9+/=]+)"', html)]
+    commands = [
+        msgpack.unpackb(base64.b64decode(b), strict_map_key=False)
+        for b in re.findall(r'data:application/octet-binary;base64,([A-Za-z0-9+/=]+)"', html)
+    ]
     frames = {}
     for command in [c for c in commands if c.get("type") == "set_animation"]:
         for animation in command["animations"]:
@@ -108,6 +110,8 @@ def recorded_frames(html: str) -> dict:
             for track in clip["tracks"]:
                 if track["name"] == ".position":
                     keys = track["keys"]
-                    frames[animation["path"]] = (np.array([k["time"] for k in keys]) / clip["fps"],
-                                                 np.array([k["value"] for k in keys], dtype=float))
+                    frames[animation["path"]] = (
+                        np.array([k["time"] for k in keys]) / clip["fps"],
+                        np.array([k["value"] for k in keys], dtype=float),
+                    )
     return frames

@@ -72,65 +72,137 @@ def _float(text: str) -> float:
 def make_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="rc1", description="Simulate the RC1 wheeled snake robot (Drake).")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
-    for add in (_add_run, _add_synthesize, _add_compare, _add_sweep, _add_identify, _add_compensate, _add_effects,
-                _add_diagnose):
+    for add in (
+        _add_run,
+        _add_synthesize,
+        _add_compare,
+        _add_sweep,
+        _add_identify,
+        _add_compensate,
+        _add_effects,
+        _add_diagnose,
+    ):
         add(sub)
     # Every simulating command picks its engine.
     for name, command in sub.choices.items():
         if name == "effects":
             continue
         default = "drake" if name == "run" else "compiled"
-        command.add_argument("--engine", choices=ENGINES, default=default,
-                             help=f"drake (the Diagram, the model of record) or compiled (its numba twin; "
-                                  f"tests/test_engine.py) (default: {default})")
+        command.add_argument(
+            "--engine",
+            choices=ENGINES,
+            default=default,
+            help=f"drake (the Diagram, the model of record) or compiled (its numba twin; "
+            f"tests/test_engine.py) (default: {default})",
+        )
     return parser
 
 
 def _add_run(sub) -> None:
     run = sub.add_parser("run", help="simulate one scenario: summary, JSON, plot")
     run.add_argument("--scenario", default="nominal", help="scenario name (default: nominal)")
-    run.add_argument("--scenarios-file", type=Path, default=DEFAULT_SCENARIOS,
-                     help=f"YAML file of named scenarios (default: {DEFAULT_SCENARIOS.name} in scenarios/)")
-    run.add_argument("--failed-joint", type=_joint, action="append", default=[], metavar="J",
-                     help="power joint J off from t = 0 (repeatable)")
+    run.add_argument(
+        "--scenarios-file",
+        type=Path,
+        default=DEFAULT_SCENARIOS,
+        help=f"YAML file of named scenarios (default: {DEFAULT_SCENARIOS.name} in scenarios/)",
+    )
+    run.add_argument(
+        "--failed-joint",
+        type=_joint,
+        action="append",
+        default=[],
+        metavar="J",
+        help="power joint J off from t = 0 (repeatable)",
+    )
     run.add_argument("--bias-deg", type=_float, metavar="B", help="bias B_i on every joint (Eq. 7), degrees")
     run.add_argument("--phase-step-deg", type=_float, metavar="P", help="phase step between joints, degrees")
-    run.add_argument("--friction", type=_friction_override, action="append", default=[], metavar="NAME=VALUE",
-                     help=f"set a friction coefficient ({', '.join(FRICTION_NAMES)}); repeatable")
-    run.add_argument("--model-file", "--friction-file", dest="model_file", type=Path, metavar="PATH",
-                     help="a model file (friction and effects), e.g. from rc1 identify --out or rc1 diagnose")
-    run.add_argument("--effect", type=_effect, action="append", default=[], metavar="NAME=VALUE",
-                     help="add a physical effect (EFFECT=VALUE or PARAMETER=VALUE, see rc1 effects); repeatable")
+    run.add_argument(
+        "--friction",
+        type=_friction_override,
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help=f"set a friction coefficient ({', '.join(FRICTION_NAMES)}); repeatable",
+    )
+    run.add_argument(
+        "--model-file",
+        "--friction-file",
+        dest="model_file",
+        type=Path,
+        metavar="PATH",
+        help="a model file (friction and effects), e.g. from rc1 identify --out or rc1 diagnose",
+    )
+    run.add_argument(
+        "--effect",
+        type=_effect,
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="add a physical effect (EFFECT=VALUE or PARAMETER=VALUE, see rc1 effects); repeatable",
+    )
     run.add_argument("--time-limit-s", type=_float, metavar="T", help="stop after T seconds at the latest")
     run.add_argument("--json", type=Path, metavar="PATH", help="write the summary as JSON")
     run.add_argument("--plot", type=Path, metavar="PATH", help="write the head path figure (PNG, PDF, SVG)")
-    run.add_argument("--animate", type=_html_path, metavar="PATH.html",
-                     help="write a standalone HTML animation of the run (Meshcat, plays offline in a browser)")
+    run.add_argument(
+        "--animate",
+        type=_html_path,
+        metavar="PATH.html",
+        help="write a standalone HTML animation of the run (Meshcat, plays offline in a browser)",
+    )
 
 
 def _add_synthesize(sub) -> None:
     syn = sub.add_parser("synthesize", help="write a synthetic campaign in the measurement format")
     syn.add_argument("out", type=Path, help="campaign folder to create (must not exist)")
-    syn.add_argument("--design", choices=["paper", "identification"], default="paper",
-                     help="paper: its cases, 5 trials each and 1 joint-2 trial; identification: 6 cases of gaits "
-                          "(70-210 deg/s) and failures, the richest within the servos whose trials replay faithfully")
-    syn.add_argument("--trials-per-case", type=_positive_int, metavar="N",
-                     help="trials in each case (the paper design's lone joint-2 trial stays one)")
+    syn.add_argument(
+        "--design",
+        choices=["paper", "identification"],
+        default="paper",
+        help="paper: its cases, 5 trials each and 1 joint-2 trial; identification: 6 cases of gaits "
+        "(70-210 deg/s) and failures, the richest within the servos whose trials replay faithfully",
+    )
+    syn.add_argument(
+        "--trials-per-case",
+        type=_positive_int,
+        metavar="N",
+        help="trials in each case (the paper design's lone joint-2 trial stays one)",
+    )
     syn.add_argument("--time-limit-s", type=_float, metavar="T", help="end every trial after T s at the latest")
-    syn.add_argument("--friction", type=_friction_override, action="append", default=[], metavar="NAME=VALUE",
-                     help="the truth's friction coefficient (repeatable; default: the paper's identified set)")
-    syn.add_argument("--effect", type=_effect, action="append", default=[], metavar="NAME=VALUE",
-                     help="a physical effect in the truth (EFFECT=VALUE or PARAMETER=VALUE, see rc1 effects); "
-                          "repeatable")
+    syn.add_argument(
+        "--friction",
+        type=_friction_override,
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="the truth's friction coefficient (repeatable; default: the paper's identified set)",
+    )
+    syn.add_argument(
+        "--effect",
+        type=_effect,
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="a physical effect in the truth (EFFECT=VALUE or PARAMETER=VALUE, see rc1 effects); repeatable",
+    )
     syn.add_argument("--noise-scale", type=_float, default=1.0, metavar="S", help="multiply every sensor noise by S")
     syn.add_argument("--no-camera", action="store_true", help="leave out the overhead camera columns")
-    syn.add_argument("--truth-model", choices=TRUTH_MODELS, default="drake",
-                     help="drake: this project's Diagram through its servos; reference: the independent planar model "
-                          "of reference.py (kinematic joints, its own limit model, the head at rest at its start; "
-                          "effects: wheel_toe only)")
+    syn.add_argument(
+        "--truth-model",
+        choices=TRUTH_MODELS,
+        default="drake",
+        help="drake: this project's Diagram through its servos; reference: the independent planar model "
+        "of reference.py (kinematic joints, its own limit model, the head at rest at its start; "
+        "effects: wheel_toe only)",
+    )
     syn.add_argument("--sample-period-s", type=_float, default=0.01, metavar="DT", help="the sensors' sample period")
-    syn.add_argument("--record-after-s", type=_float, default=0.0, metavar="T",
-                     help="start the recording T s after the robot started (the data then begin in motion)")
+    syn.add_argument(
+        "--record-after-s",
+        type=_float,
+        default=0.0,
+        metavar="T",
+        help="start the recording T s after the robot started (the data then begin in motion)",
+    )
     syn.add_argument("--seed", type=int, default=0)
     syn.add_argument("--truth", type=Path, metavar="PATH", help="where to record the truth (JSON)")
 
@@ -138,12 +210,30 @@ def _add_synthesize(sub) -> None:
 def _add_compare(sub) -> None:
     cmp = sub.add_parser("compare", help="replay a campaign through the model and score it (Eq. 6, Table 2)")
     cmp.add_argument("campaign", type=Path, help="campaign folder (data/README.md)")
-    cmp.add_argument("--friction", type=_friction_override, action="append", default=[], metavar="NAME=VALUE",
-                     help="friction coefficient for the model (repeatable)")
-    cmp.add_argument("--model-file", "--friction-file", dest="model_file", type=Path, metavar="PATH",
-                     help="a model file (friction and effects), e.g. from rc1 identify --out or rc1 diagnose")
-    cmp.add_argument("--effect", type=_effect, action="append", default=[], metavar="NAME=VALUE",
-                     help="add a physical effect to the model (see rc1 effects); repeatable")
+    cmp.add_argument(
+        "--friction",
+        type=_friction_override,
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="friction coefficient for the model (repeatable)",
+    )
+    cmp.add_argument(
+        "--model-file",
+        "--friction-file",
+        dest="model_file",
+        type=Path,
+        metavar="PATH",
+        help="a model file (friction and effects), e.g. from rc1 identify --out or rc1 diagnose",
+    )
+    cmp.add_argument(
+        "--effect",
+        type=_effect,
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="add a physical effect to the model (see rc1 effects); repeatable",
+    )
     cmp.add_argument("--json", type=Path, metavar="PATH", help="write every per-trial and per-case number")
     cmp.add_argument("--plots", type=Path, metavar="DIR", help="write figures in the paper's styles")
     _add_start_rates(cmp, default="rest", fit="to its first 0.5 s of camera path and IMU")
@@ -152,20 +242,39 @@ def _add_compare(sub) -> None:
 
 def _add_sweep(sub) -> None:
     swp = sub.add_parser("sweep", help="fail each joint in turn (and none), several trials each")
-    swp.add_argument("--out", type=Path, required=True, metavar="DIR",
-                     help="results folder: results.jsonl streams a row per run; rerunning resumes")
+    swp.add_argument(
+        "--out",
+        type=Path,
+        required=True,
+        metavar="DIR",
+        help="results folder: results.jsonl streams a row per run; rerunning resumes",
+    )
     swp.add_argument("--trials", type=_positive_int, default=5, metavar="N", help="trials per case (default 5)")
-    swp.add_argument("--joints", type=_joint_list, default=list(range(1, 14)), metavar="LIST",
-                     help="failed joints, e.g. 1-13 or 2,7,13 (default 1-13)")
+    swp.add_argument(
+        "--joints",
+        type=_joint_list,
+        default=list(range(1, 14)),
+        metavar="LIST",
+        help="failed joints, e.g. 1-13 or 2,7,13 (default 1-13)",
+    )
     swp.add_argument("--mode", choices=FAILURE_MODES, default="free", help="failure mode (default free, as the paper)")
     swp.add_argument("--fail-time-s", type=_float, default=0.0, metavar="T", help="when the joints fail (default 0)")
     swp.add_argument("--double", action="store_true", help="every pair of the joints instead of one at a time")
     swp.add_argument("--no-nominal", action="store_true", help="leave out the no-failure case")
     swp.add_argument("--friction", type=_friction_override, action="append", default=[], metavar="NAME=VALUE")
-    swp.add_argument("--model-file", type=Path, metavar="PATH",
-                     help="a model file (friction and effects), e.g. from rc1 identify --out")
-    swp.add_argument("--friction-spread", type=_float, default=0.0, metavar="F",
-                     help="draw each friction coefficient within +-F (a fraction) of its value per run")
+    swp.add_argument(
+        "--model-file",
+        type=Path,
+        metavar="PATH",
+        help="a model file (friction and effects), e.g. from rc1 identify --out",
+    )
+    swp.add_argument(
+        "--friction-spread",
+        type=_float,
+        default=0.0,
+        metavar="F",
+        help="draw each friction coefficient within +-F (a fraction) of its value per run",
+    )
     swp.add_argument("--bias-deg", type=_float, default=0.0, metavar="B", help="bias on every joint, degrees")
     swp.add_argument("--time-limit-s", type=_float, default=30.0, metavar="T")
     swp.add_argument("--seed", type=int, default=0)
@@ -176,35 +285,73 @@ def _add_sweep(sub) -> None:
 def _add_identify(sub) -> None:
     idn = sub.add_parser("identify", help="identify the five friction coefficients from a campaign")
     idn.add_argument("campaign", type=Path)
-    idn.add_argument("--method", choices=("avs", "program", "equation-error"), default="avs",
-                     help="avs: the paper's Alternating Variable Search; program: least squares of the standardized "
-                          "residuals, Levenberg-Marquardt steps as MathematicalPrograms solved by SNOPT, started from "
-                          "what equation error identifies; equation-error: inverse dynamics from camera and "
-                          "potentiometers, linear least squares, no simulation")
+    idn.add_argument(
+        "--method",
+        choices=("avs", "program", "equation-error"),
+        default="avs",
+        help="avs: the paper's Alternating Variable Search; program: least squares of the standardized "
+        "residuals, Levenberg-Marquardt steps as MathematicalPrograms solved by SNOPT, started from "
+        "what equation error identifies; equation-error: inverse dynamics from camera and "
+        "potentiometers, linear least squares, no simulation",
+    )
     idn.add_argument("--trials", metavar="IDS", help="comma-separated trial ids to fit (default: all)")
-    idn.add_argument("--validation", metavar="IDS",
-                     help="comma-separated held-out trial ids to score the result on (default: the trials not fitted)")
-    idn.add_argument("--iterations", type=_positive_int, default=10, metavar="N",
-                     help="AVS iterations, or the program fit's at most (default 10)")
-    idn.add_argument("--input-noise-samples", type=_count, default=INPUT_NOISE_SAMPLES, metavar="K",
-                     help="resampled replays per trial for the potentiometer noise the replays follow, in the "
-                          f"screening and the reported intervals (default {INPUT_NOISE_SAMPLES}; 0 leaves it out: "
-                          "intervals too narrow)")
-    idn.add_argument("--start", "--model-file", dest="start", type=Path, metavar="MODEL.yaml",
-                     help="a model file: starting coefficients (default: the paper's manual values; frozen ones "
-                          "stay at them) and effects, which stay fixed")
-    idn.add_argument("--freeze", action="append", default=[], choices=FRICTION_NAMES, metavar="NAME",
-                     help="keep a coefficient at its start value (repeatable)")
-    _add_start_rates(idn, default="rest", fit="fitted once per trial to its first 0.5 s of camera path and IMU, "
-                                              "at the start model, and held through the fit")
+    idn.add_argument(
+        "--validation",
+        metavar="IDS",
+        help="comma-separated held-out trial ids to score the result on (default: the trials not fitted)",
+    )
+    idn.add_argument(
+        "--iterations",
+        type=_positive_int,
+        default=10,
+        metavar="N",
+        help="AVS iterations, or the program fit's at most (default 10)",
+    )
+    idn.add_argument(
+        "--input-noise-samples",
+        type=_count,
+        default=INPUT_NOISE_SAMPLES,
+        metavar="K",
+        help="resampled replays per trial for the potentiometer noise the replays follow, in the "
+        f"screening and the reported intervals (default {INPUT_NOISE_SAMPLES}; 0 leaves it out: "
+        "intervals too narrow)",
+    )
+    idn.add_argument(
+        "--start",
+        "--model-file",
+        dest="start",
+        type=Path,
+        metavar="MODEL.yaml",
+        help="a model file: starting coefficients (default: the paper's manual values; frozen ones "
+        "stay at them) and effects, which stay fixed",
+    )
+    idn.add_argument(
+        "--freeze",
+        action="append",
+        default=[],
+        choices=FRICTION_NAMES,
+        metavar="NAME",
+        help="keep a coefficient at its start value (repeatable)",
+    )
+    _add_start_rates(
+        idn,
+        default="rest",
+        fit="fitted once per trial to its first 0.5 s of camera path and IMU, "
+        "at the start model, and held through the fit",
+    )
     _add_checkpoint(idn, default="<campaign>-identify")
     _add_outputs(idn, out_help="write a model file: the identified coefficients and the (fixed) effects")
 
 
 def _add_compensate(sub) -> None:
     cmpn = sub.add_parser("compensate", help="bias, heading feedback and reverse driving for failed joints")
-    cmpn.add_argument("--joints", type=_joint_list, default=list(range(1, 14)), metavar="LIST",
-                      help="failed joints to compensate, e.g. 2,7,13 (default 1-13)")
+    cmpn.add_argument(
+        "--joints",
+        type=_joint_list,
+        default=list(range(1, 14)),
+        metavar="LIST",
+        help="failed joints to compensate, e.g. 2,7,13 (default 1-13)",
+    )
     cmpn.add_argument("--json", type=Path, metavar="PATH", help="write every number")
     cmpn.add_argument("--time-limit-s", type=_float, default=30.0, metavar="T")
     cmpn.add_argument("--workers", type=_positive_int, metavar="N", help="local processes (default: every core)")
@@ -216,43 +363,80 @@ def _add_effects(sub) -> None:
 
 
 def _add_diagnose(sub) -> None:
-    dgn = sub.add_parser("diagnose", help="find the missing physics: fit, where it fails, rank candidate effects, "
-                                          "accept what holds on held-out trials, repeat")
+    dgn = sub.add_parser(
+        "diagnose",
+        help="find the missing physics: fit, where it fails, rank candidate effects, "
+        "accept what holds on held-out trials, repeat",
+    )
     dgn.add_argument("campaign", type=Path)
-    dgn.add_argument("--model-file", type=Path, metavar="MODEL.yaml",
-                     help="today's model (friction and effects; default: the paper's identified friction, no effect)")
-    dgn.add_argument("--candidates", type=_candidates, metavar="NAMES",
-                     help="comma-separated effect names or groups to consider: physical (the default), sensor (the "
-                          "sensor faults), or names from rc1 effects")
+    dgn.add_argument(
+        "--model-file",
+        type=Path,
+        metavar="MODEL.yaml",
+        help="today's model (friction and effects; default: the paper's identified friction, no effect)",
+    )
+    dgn.add_argument(
+        "--candidates",
+        type=_candidates,
+        metavar="NAMES",
+        help="comma-separated effect names or groups to consider: physical (the default), sensor (the "
+        "sensor faults), or names from rc1 effects",
+    )
     dgn.add_argument("--trials", metavar="IDS", help="comma-separated trial ids (default: all)")
-    dgn.add_argument("--freeze", action="append", default=[], choices=FRICTION_NAMES, metavar="NAME",
-                     help="keep a friction coefficient at the model's value (repeatable; saves its replays)")
+    dgn.add_argument(
+        "--freeze",
+        action="append",
+        default=[],
+        choices=FRICTION_NAMES,
+        metavar="NAME",
+        help="keep a friction coefficient at the model's value (repeatable; saves its replays)",
+    )
     dgn.add_argument("--rounds", type=_positive_int, default=3, metavar="N", help="effects to add at most (default 3)")
-    dgn.add_argument("--input-noise-samples", type=_positive_int, default=DIAGNOSE_NOISE_SAMPLES, metavar="K",
-                     help="noisy replays of each trial's noise-free twin, for the replay's own miss and its input "
-                          f"noise (default {DIAGNOSE_NOISE_SAMPLES})")
-    dgn.add_argument("--no-probe-study", action="store_true",
-                     help="do not simulate short probe trials to name the experiment that would see an effect "
-                          "not detectable here")
-    _add_start_rates(dgn, default="rest", fit="three nuisance coordinates per trial, fixed by its first 0.5 s in "
-                                              "every fit: for data whose start follows no known convention")
+    dgn.add_argument(
+        "--input-noise-samples",
+        type=_positive_int,
+        default=DIAGNOSE_NOISE_SAMPLES,
+        metavar="K",
+        help="noisy replays of each trial's noise-free twin, for the replay's own miss and its input "
+        f"noise (default {DIAGNOSE_NOISE_SAMPLES})",
+    )
+    dgn.add_argument(
+        "--no-probe-study",
+        action="store_true",
+        help="do not simulate short probe trials to name the experiment that would see an effect not detectable here",
+    )
+    _add_start_rates(
+        dgn,
+        default="rest",
+        fit="three nuisance coordinates per trial, fixed by its first 0.5 s in "
+        "every fit: for data whose start follows no known convention",
+    )
     _add_checkpoint(dgn, default="<campaign>")
-    _add_outputs(dgn, out_help="write the diagnosed model (friction and accepted effects; default "
-                               "out/<campaign>.model.yaml)")
+    _add_outputs(
+        dgn, out_help="write the diagnosed model (friction and accepted effects; default out/<campaign>.model.yaml)"
+    )
 
 
 def _add_checkpoint(parser, *, default: str) -> None:
-    parser.add_argument("--checkpoint", type=Path, metavar="DIR",
-                        help="keep every replay's result here as it arrives, so that the same command interrupted and "
-                             f"run again resumes where it stopped (default: out/checkpoints/{default}; removed when "
-                             "it finishes)")
+    parser.add_argument(
+        "--checkpoint",
+        type=Path,
+        metavar="DIR",
+        help="keep every replay's result here as it arrives, so that the same command interrupted and "
+        f"run again resumes where it stopped (default: out/checkpoints/{default}; removed when "
+        "it finishes)",
+    )
 
 
 def _add_start_rates(parser, *, default: str, fit: str) -> None:
-    parser.add_argument("--start-rates", choices=START_MODES, default=default,
-                        help=f"the head's velocity and yaw rate at t = 0 of a trial that does not give them: fit "
-                             f"({fit}) or rest (the synthetic campaigns' convention: centre of mass at rest, mean "
-                             f"axis not turning) (default: {default})")
+    parser.add_argument(
+        "--start-rates",
+        choices=START_MODES,
+        default=default,
+        help=f"the head's velocity and yaw rate at t = 0 of a trial that does not give them: fit "
+        f"({fit}) or rest (the synthetic campaigns' convention: centre of mass at rest, mean "
+        f"axis not turning) (default: {default})",
+    )
 
 
 def _add_outputs(parser, *, out_help: str) -> None:
@@ -334,8 +518,9 @@ def scenario_from_args(args):
     if args.time_limit_s is not None:
         stop = dataclasses.replace(stop, time_limit_s=args.time_limit_s)
     effects = {**effects, **dict(args.effect)}
-    scenario = dataclasses.replace(scenario, failures=failures, gait=gait, friction=friction, stop=stop,
-                                   effects=effects)
+    scenario = dataclasses.replace(
+        scenario, failures=failures, gait=gait, friction=friction, stop=stop, effects=effects
+    )
     return validate(scenario, where="command line")
 
 
@@ -378,16 +563,28 @@ def cmd_synthesize(args) -> int:
         raise Rc1Error(f"{args.out}: already exists; synthesize writes a new campaign folder")
     design = DESIGNS[args.design]
     if args.trials_per_case:
-        design = [dataclasses.replace(c, trials=args.trials_per_case if c.trials > 1 or args.design != "paper"
-                                      else c.trials) for c in design]
+        design = [
+            dataclasses.replace(c, trials=args.trials_per_case if c.trials > 1 or args.design != "paper" else c.trials)
+            for c in design
+        ]
     stop = None if args.time_limit_s is None else Stop(time_limit_s=args.time_limit_s)
     friction = validate_friction(dict(args.friction))
     effects = dict(args.effect)
     validate(Scenario(effects=effects, stop=stop or Stop()), where="command line")
-    campaign = synthesize_campaign(args.out, design=design, friction=friction, effects=effects,
-                                   noise=Noise().scaled(args.noise_scale), camera=not args.no_camera, seed=args.seed,
-                                   truth_file=args.truth, stop=stop, truth_model=args.truth_model,
-                                   sample_period_s=args.sample_period_s, record_after_s=args.record_after_s)
+    campaign = synthesize_campaign(
+        args.out,
+        design=design,
+        friction=friction,
+        effects=effects,
+        noise=Noise().scaled(args.noise_scale),
+        camera=not args.no_camera,
+        seed=args.seed,
+        truth_file=args.truth,
+        stop=stop,
+        truth_model=args.truth_model,
+        sample_period_s=args.sample_period_s,
+        record_after_s=args.record_after_s,
+    )
     print(f"wrote {len(campaign.trials)} trials to {args.out}" + (f"; truth in {args.truth}" if args.truth else ""))
     return 0
 
@@ -426,8 +623,9 @@ def cmd_compare(args) -> int:
     def progress(done, total, trial_id):
         print(f"\r  replayed {done}/{total} trials ({trial_id})", end="", file=sys.stderr, flush=True)
 
-    report = compare_campaign(campaign, friction, effects=effects or None, workers=args.workers, progress=progress,
-                              start=args.start_rates)
+    report = compare_campaign(
+        campaign, friction, effects=effects or None, workers=args.workers, progress=progress, start=args.start_rates
+    )
     print(file=sys.stderr)
     print(f"Simulator error (paper Eq. 6) per trial, {campaign.path}:")
     print(report.table())
@@ -437,14 +635,18 @@ def cmd_compare(args) -> int:
         cam = "-" if r.camera_fit_pct is None else f"{r.camera_fit_pct['x']:.0f}/{r.camera_fit_pct['y']:.0f}"
         print(f"{r.trial_id:<16}{r.case:<10}{r.eq6_error_pct:8.1f}{r.yaw_rate_fit_pct:16.1f}{cam:>18}{r.outcome:>11}")
         if r.circle_diameter_model_m is not None or r.circle_diameter_measured_m is not None:
-            print(f"{'':<16}revolutions model {r.revolutions_model:.2f} / measured {r.revolutions_measured:.2f}; "
-                  f"circle diameter model {r.circle_diameter_model_m} / measured {r.circle_diameter_measured_m}")
+            print(
+                f"{'':<16}revolutions model {r.revolutions_model:.2f} / measured {r.revolutions_measured:.2f}; "
+                f"circle diameter model {r.circle_diameter_model_m} / measured {r.circle_diameter_measured_m}"
+            )
     from .residuals import where_it_fails
 
     where = where_it_fails(report, campaign)
     print()
-    print("Where the model fails (worst first; path error from the camera; LB p: whiteness of the yaw-rate "
-          "residual, small = structure left; the feature it correlates with most):")
+    print(
+        "Where the model fails (worst first; path error from the camera; LB p: whiteness of the yaw-rate "
+        "residual, small = structure left; the feature it correlates with most):"
+    )
     print(where.table())
     if args.json:
         record = {**report.to_json(), "where_it_fails": where.to_json()}
@@ -467,9 +669,12 @@ def write_compare_plots(report, campaign, folder: Path) -> None:
         name = case.replace("+", "_")
         runs = [report.runs[t.trial_id] for t in trials]
         figures = {
-            f"paths_{name}.png": head_path_figure(runs, labels=[t.trial_id for t in trials],
-                                                  measured_final=[t.final_head_xy for t in trials],
-                                                  title=f"case {case}: simulated paths, measured (*) vs predicted (x) ends"),
+            f"paths_{name}.png": head_path_figure(
+                runs,
+                labels=[t.trial_id for t in trials],
+                measured_final=[t.final_head_xy for t in trials],
+                title=f"case {case}: simulated paths, measured (*) vs predicted (x) ends",
+            ),
             f"yaw_rate_{name}.png": yaw_rate_figure(trials[0], runs[0]),
             f"residuals_{name}.png": residuals_figure([results[t.trial_id] for t in trials], title=f"case {case}"),
         }
@@ -499,12 +704,20 @@ def cmd_sweep(args) -> int:
             for f in s:
                 f.time_s = args.fail_time_s
     else:
-        sets = single_failure_sets(args.joints, mode=args.mode, time_s=args.fail_time_s,
-                                   include_none=not args.no_nominal)
+        sets = single_failure_sets(
+            args.joints, mode=args.mode, time_s=args.fail_time_s, include_none=not args.no_nominal
+        )
     friction, effects = model_from_args(dict(args.friction), args.model_file)
-    jobs = make_jobs(failure_sets=sets, trials=args.trials, seed=args.seed, friction=friction, effects=effects,
-                     friction_spread=args.friction_spread, bias_deg=args.bias_deg,
-                     stop=Stop(time_limit_s=args.time_limit_s))
+    jobs = make_jobs(
+        failure_sets=sets,
+        trials=args.trials,
+        seed=args.seed,
+        friction=friction,
+        effects=effects,
+        friction_spread=args.friction_spread,
+        bias_deg=args.bias_deg,
+        stop=Stop(time_limit_s=args.time_limit_s),
+    )
     for job in jobs[:1] + jobs[-1:]:
         validate(job.scenario, where="command line")
     with make_executor(workers=args.workers, scheduler=args.scheduler) as executor:
@@ -519,8 +732,10 @@ def cmd_sweep(args) -> int:
     errors = [r for r in rows if r["status"] != "ok"]
     for r in errors:
         print(f"error in {r['label']} trial {r['trial']}: {r['error']}", file=sys.stderr)
-    _write_atomically(args.out / "summary.json",
-                      lambda p: p.write_text(json.dumps({"cases": table, "halves": halves}, indent=2) + "\n"))
+    _write_atomically(
+        args.out / "summary.json",
+        lambda p: p.write_text(json.dumps({"cases": table, "halves": halves}, indent=2) + "\n"),
+    )
     for name, fig in (("outcome_drift.png", sweep_figure(table)), ("paths.png", paths_grid_figure(rows))):
         _write_atomically(args.out / name, lambda p, fig=fig: fig.savefig(p, format="png", dpi=110))
         plt.close(fig)
@@ -540,15 +755,26 @@ def cmd_identify(args) -> int:
 
     campaign = loaded_campaign(args.campaign)
     checkpoint = args.checkpoint or Path("out") / "checkpoints" / f"{Path(campaign.path).name}-identify"
-    result = identify(campaign, method=args.method, trials=ids(args.trials), validation=ids(args.validation),
-                      start=load_model_file(args.start) if args.start else None, freeze=args.freeze,
-                      start_rates=args.start_rates, iterations=args.iterations,
-                      input_noise_samples=args.input_noise_samples, workers=args.workers, scheduler=args.scheduler,
-                      progress=progress, checkpoint=checkpoint)
+    result = identify(
+        campaign,
+        method=args.method,
+        trials=ids(args.trials),
+        validation=ids(args.validation),
+        start=load_model_file(args.start) if args.start else None,
+        freeze=args.freeze,
+        start_rates=args.start_rates,
+        iterations=args.iterations,
+        input_noise_samples=args.input_noise_samples,
+        workers=args.workers,
+        scheduler=args.scheduler,
+        progress=progress,
+        checkpoint=checkpoint,
+    )
     print(result.format())
     if args.json:
-        _write_atomically(args.json, lambda p: p.write_text(json.dumps(result.to_json(), indent=2, default=float)
-                                                            + "\n"))
+        _write_atomically(
+            args.json, lambda p: p.write_text(json.dumps(result.to_json(), indent=2, default=float) + "\n")
+        )
     if args.out:
         _write_atomically(args.out, lambda p: p.write_text(friction_to_yaml(result.friction, result.effects)))
     if args.plots and args.method == "avs":
@@ -564,7 +790,9 @@ def cmd_compensate(args) -> int:
     from .config import Scenario
     from .executor import make_executor
 
-    scenarios = {j: Scenario(failures=[Failure(joint=j)], stop=Stop(time_limit_s=args.time_limit_s)) for j in args.joints}
+    scenarios = {
+        j: Scenario(failures=[Failure(joint=j)], stop=Stop(time_limit_s=args.time_limit_s)) for j in args.joints
+    }
     with make_executor(workers=args.workers, scheduler=args.scheduler) as executor:
         futures = {j: executor.submit(compensation_study, s) for j, s in scenarios.items()}
         results = {j: f.result() for j, f in futures.items()}
@@ -572,11 +800,14 @@ def cmd_compensate(args) -> int:
     for j, by in results.items():
         for name, r in by.items():
             bias = "" if "bias_deg" not in r else f"{r['bias_deg']:.2f}"
-            print(f"J{j:<6}{name:<14}{r['outcome']:<11}{r['lateral_drift_m']:9.2f}{r['progress_x_m']:12.2f}"
-                  f"{r['t_final_s']:7.1f}{bias:>10}")
+            print(
+                f"J{j:<6}{name:<14}{r['outcome']:<11}{r['lateral_drift_m']:9.2f}{r['progress_x_m']:12.2f}"
+                f"{r['t_final_s']:7.1f}{bias:>10}"
+            )
     if args.json:
-        _write_atomically(args.json, lambda p: p.write_text(json.dumps({f"J{j}": r for j, r in results.items()},
-                                                                        indent=2) + "\n"))
+        _write_atomically(
+            args.json, lambda p: p.write_text(json.dumps({f"J{j}": r for j, r in results.items()}, indent=2) + "\n")
+        )
     return 0
 
 
@@ -586,7 +817,10 @@ def cmd_effects(args) -> int:
     for effect in LIBRARY.values():
         print(f"{effect.name}: {effect.summary}" + ("" if effect.seen_in_replay else " (gait-driven runs only)"))
         for p in effect.parameters:
-            print(f"    {p.key:<30} [{p.lower:g}, {p.upper:g}]" + ("" if p.fitted else f"  setting, default {p.default:g}"))
+            print(
+                f"    {p.key:<30} [{p.lower:g}, {p.upper:g}]"
+                + ("" if p.fitted else f"  setting, default {p.default:g}")
+            )
     return 0
 
 
@@ -605,24 +839,42 @@ def cmd_diagnose(args) -> int:
     def progress(text):
         print(f"  [{time.perf_counter() - started:5.0f} s] {text}", file=sys.stderr, flush=True)
 
-    result = diagnose(campaign, friction=model.friction, effects=model.effects, candidates=args.candidates,
-                      trials=trials, held=args.freeze, workers=args.workers, scheduler=args.scheduler,
-                      input_noise_samples=args.input_noise_samples, max_rounds=args.rounds,
-                      probe_study=not args.no_probe_study, progress=progress, start_rates=args.start_rates,
-                      checkpoint=checkpoint)
+    result = diagnose(
+        campaign,
+        friction=model.friction,
+        effects=model.effects,
+        candidates=args.candidates,
+        trials=trials,
+        held=args.freeze,
+        workers=args.workers,
+        scheduler=args.scheduler,
+        input_noise_samples=args.input_noise_samples,
+        max_rounds=args.rounds,
+        probe_study=not args.no_probe_study,
+        progress=progress,
+        start_rates=args.start_rates,
+        checkpoint=checkpoint,
+    )
     print(result.format())
     out = args.out or Path("out") / f"{Path(campaign.path).name}.model.yaml"
-    _write_atomically(out, lambda p: p.write_text(model_to_yaml(
-        result.friction, result.effects, comment=f"rc1 diagnose {campaign.path}: {result.verdict}")))
+    _write_atomically(
+        out,
+        lambda p: p.write_text(
+            model_to_yaml(result.friction, result.effects, comment=f"rc1 diagnose {campaign.path}: {result.verdict}")
+        ),
+    )
     resumed = f", {result.resumed} of them from an interrupted run's checkpoint" if result.resumed else ""
     print(f"model file: {out}  ({result.simulations} simulations{resumed}, {result.wall_s:.0f} s)")
     if args.json:
-        _write_atomically(args.json, lambda p: p.write_text(json.dumps(result.to_json(), indent=2, default=_jsonable)
-                                                            + "\n"))
+        _write_atomically(
+            args.json, lambda p: p.write_text(json.dumps(result.to_json(), indent=2, default=_jsonable) + "\n")
+        )
     if args.plots:
         write_compare_plots(result.report, campaign, args.plots / "where_it_fails")
-        for name, fig in {"waterfall.png": waterfall_figure(result.waterfall),
-                          "candidates.png": candidates_figure(result.candidates)}.items():
+        for name, fig in {
+            "waterfall.png": waterfall_figure(result.waterfall),
+            "candidates.png": candidates_figure(result.candidates),
+        }.items():
             _write_atomically(args.plots / name, lambda p, fig=fig: fig.savefig(p, format="png", dpi=110))
             plt.close(fig)
     Checkpoint.discard(checkpoint)
@@ -642,10 +894,17 @@ def _jsonable(value):
 def _check_outputs(args) -> None:
     """Rc1Error for an output the command could not write, before it does any work (a long diagnosis must not end
     in an unwritable path): the folders of --json and --out, and --plots, are created and written to once."""
-    files = {"json": True, "out": args.command != "sweep", "plots": False, "checkpoint": False}  # sweep's --out: a folder
-    folders = [(f"--{name} {getattr(args, name)}", getattr(args, name).parent if is_file else getattr(args, name))
-               for name, is_file in files.items()
-               if isinstance(getattr(args, name, None), Path) and args.command != "synthesize"]
+    files = {
+        "json": True,
+        "out": args.command != "sweep",
+        "plots": False,
+        "checkpoint": False,
+    }  # sweep's --out: a folder
+    folders = [
+        (f"--{name} {getattr(args, name)}", getattr(args, name).parent if is_file else getattr(args, name))
+        for name, is_file in files.items()
+        if isinstance(getattr(args, name, None), Path) and args.command != "synthesize"
+    ]
     for option, folder in folders:
         try:
             folder.mkdir(parents=True, exist_ok=True)
@@ -661,9 +920,16 @@ def main(argv=None) -> int:
         use_engine(args.engine)  # batch work and its worker processes follow it
     try:
         _check_outputs(args)
-        return {"run": cmd_run, "synthesize": cmd_synthesize, "compare": cmd_compare, "sweep": cmd_sweep,
-                "identify": cmd_identify, "compensate": cmd_compensate, "effects": cmd_effects,
-                "diagnose": cmd_diagnose}[args.command](args)
+        return {
+            "run": cmd_run,
+            "synthesize": cmd_synthesize,
+            "compare": cmd_compare,
+            "sweep": cmd_sweep,
+            "identify": cmd_identify,
+            "compensate": cmd_compensate,
+            "effects": cmd_effects,
+            "diagnose": cmd_diagnose,
+        }[args.command](args)
     except Rc1Error as e:
         print(f"rc1 {args.command}: error: {e}", file=sys.stderr)
         return 2

@@ -5,7 +5,6 @@ import contextlib
 import dataclasses
 import math
 import os
-from typing import List, Optional
 
 import numpy as np
 
@@ -40,16 +39,16 @@ class TrialResult:
     measured_final_xy_m: list
     outcome: str  # how the replay ended (replay_outcome)
     yaw_rate_fit_pct: float
-    camera_fit_pct: Optional[dict]  # {"x": .., "y": .., "yaw": ..} or None without a camera
+    camera_fit_pct: dict | None  # {"x": .., "y": .., "yaw": ..} or None without a camera
     tracking_rms_deg: float
     revolutions_model: float
     revolutions_measured: float
-    circle_diameter_model_m: Optional[float]
-    circle_diameter_measured_m: Optional[float]
+    circle_diameter_model_m: float | None
+    circle_diameter_measured_m: float | None
     # Time series for plots and residual analysis (not in the JSON).
     t: np.ndarray = dataclasses.field(repr=False, default=None)
     yaw_rate_residual: np.ndarray = dataclasses.field(repr=False, default=None)
-    position_residual: Optional[np.ndarray] = dataclasses.field(repr=False, default=None)
+    position_residual: np.ndarray | None = dataclasses.field(repr=False, default=None)
 
     def to_json(self) -> dict:
         out = {}
@@ -65,7 +64,7 @@ class TrialResult:
 class CampaignReport:
     campaign: str
     friction: Friction
-    trials: List[TrialResult]
+    trials: list[TrialResult]
     runs: dict = dataclasses.field(repr=False, default_factory=dict)  # trial_id -> Run
 
     def cases(self) -> dict:
@@ -79,16 +78,24 @@ class CampaignReport:
         return float(np.mean([r.eq6_error_pct for r in self.trials]))
 
     def case_summary(self) -> dict:
-        return {case: {"trials": [r.trial_id for r in rs],
-                       "eq6_error_pct": [r.eq6_error_pct for r in rs],
-                       "mean_eq6_error_pct": float(np.mean([r.eq6_error_pct for r in rs])),
-                       "mean_yaw_rate_fit_pct": float(np.mean([r.yaw_rate_fit_pct for r in rs]))}
-                for case, rs in self.cases().items()}
+        return {
+            case: {
+                "trials": [r.trial_id for r in rs],
+                "eq6_error_pct": [r.eq6_error_pct for r in rs],
+                "mean_eq6_error_pct": float(np.mean([r.eq6_error_pct for r in rs])),
+                "mean_yaw_rate_fit_pct": float(np.mean([r.yaw_rate_fit_pct for r in rs])),
+            }
+            for case, rs in self.cases().items()
+        }
 
     def to_json(self) -> dict:
-        return {"campaign": self.campaign, "friction": dataclasses.asdict(self.friction),
-                "mean_eq6_error_pct": self.mean_eq6_error_pct, "cases": self.case_summary(),
-                "trials": [r.to_json() for r in self.trials]}
+        return {
+            "campaign": self.campaign,
+            "friction": dataclasses.asdict(self.friction),
+            "mean_eq6_error_pct": self.mean_eq6_error_pct,
+            "cases": self.case_summary(),
+            "trials": [r.to_json() for r in self.trials],
+        }
 
     def table(self) -> str:
         """Paper Table 2: a row per case, a column per trial, and the average."""
@@ -137,7 +144,8 @@ def score_trial(trial: Trial, run) -> TrialResult:
     yaw_measured = np.concatenate([[0.0], np.cumsum(0.5 * (trial.head_yaw_rate[1:] + trial.head_yaw_rate[:-1]) * dt)])
     circling = run.stop_reason == "circling" or trial.stop.type == "revolutions"
     return TrialResult(
-        trial_id=trial.trial_id, case=trial.case,
+        trial_id=trial.trial_id,
+        case=trial.case,
         eq6_error_pct=simulator_error(run.head_xy[-1], trial.final_head_xy, trial.initial_head_pose[:2]),
         predicted_final_xy_m=[float(v) for v in run.head_xy[-1]],
         measured_final_xy_m=[float(v) for v in trial.final_head_xy],
@@ -148,8 +156,12 @@ def score_trial(trial: Trial, run) -> TrialResult:
         revolutions_model=float(revolutions(run.head_yaw)),
         revolutions_measured=float(revolutions(yaw_measured)),
         circle_diameter_model_m=float(circle_diameter(run.head_xy, run.head_yaw)) if circling else None,
-        circle_diameter_measured_m=None if cam_diameter is None or not math.isfinite(cam_diameter) else float(cam_diameter),
-        t=t[inside], yaw_rate_residual=rate_residual, position_residual=position_residual,
+        circle_diameter_measured_m=None
+        if cam_diameter is None or not math.isfinite(cam_diameter)
+        else float(cam_diameter),
+        t=t[inside],
+        yaw_rate_residual=rate_residual,
+        position_residual=position_residual,
     )
 
 
@@ -161,8 +173,15 @@ def _replay_and_score(trial: Trial, friction, effects, numerics, start="rest"):
     return score_trial(trial, run), run
 
 
-def compare_campaign(campaign: Campaign, friction: Optional[Friction] = None, effects=None, numerics=None,
-                     workers: Optional[int] = None, progress=None, start="rest") -> CampaignReport:
+def compare_campaign(
+    campaign: Campaign,
+    friction: Friction | None = None,
+    effects=None,
+    numerics=None,
+    workers: int | None = None,
+    progress=None,
+    start="rest",
+) -> CampaignReport:
     """Replay every trial with `friction` (and `effects`) and score it; trials run in parallel on
     `workers` processes (default: every core), each building its own Diagram. start: where the head's rates at
     t = 0 come from, unless the trial gives them: "rest" (the protocol's convention, protocol.rest_state) or "fit"
@@ -177,12 +196,18 @@ def compare_campaign(campaign: Campaign, friction: Optional[Friction] = None, ef
             results = (_replay_and_score(t, friction, effects, numerics, start) for t in trials)
         else:
             pool = stack.enter_context(make_executor(workers=workers))
-            results = (f.result() for f in [pool.submit(_replay_and_score, t, friction, effects, numerics, start)
-                                             for t in trials])
+            results = (
+                f.result()
+                for f in [pool.submit(_replay_and_score, t, friction, effects, numerics, start) for t in trials]
+            )
         outputs = []
         for k, (trial, output) in enumerate(zip(trials, results, strict=True)):
             outputs.append(output)
             if progress:
                 progress(k + 1, len(trials), trial.trial_id)
-    return CampaignReport(campaign=str(campaign.path), friction=friction, trials=[o[0] for o in outputs],
-                          runs={t.trial_id: o[1] for t, o in zip(trials, outputs, strict=True)})
+    return CampaignReport(
+        campaign=str(campaign.path),
+        friction=friction,
+        trials=[o[0] for o in outputs],
+        runs={t.trial_id: o[1] for t, o in zip(trials, outputs, strict=True)},
+    )

@@ -36,8 +36,10 @@ def reversed_drive(scenario: Scenario) -> Scenario:
     gait: Gait = scenario.gait
     start: Start = scenario.start
     return dataclasses.replace(
-        scenario, gait=dataclasses.replace(gait, phase_step_deg=-gait.phase_step_deg),
-        start=dataclasses.replace(start, heading_deg=start.heading_deg + 180.0))
+        scenario,
+        gait=dataclasses.replace(gait, phase_step_deg=-gait.phase_step_deg),
+        start=dataclasses.replace(start, heading_deg=start.heading_deg + 180.0),
+    )
 
 
 @dataclasses.dataclass
@@ -48,8 +50,9 @@ class BiasSearch:
     history: list  # (bias_deg, drift_m) of every run
 
 
-def auto_bias(scenario: Scenario, *, bounds_deg=(-3.0, 3.0), tolerance_deg=0.05, max_runs=16,
-              session=None) -> BiasSearch:
+def auto_bias(
+    scenario: Scenario, *, bounds_deg=(-3.0, 3.0), tolerance_deg=0.05, max_runs=16, session=None
+) -> BiasSearch:
     """The uniform bias in `bounds_deg` that minimizes |lateral drift| at the end of the run."""
     session = session or make_session(scenario)
     history = []
@@ -70,20 +73,28 @@ def compensation_study(scenario: Scenario) -> dict:
 
     def describe(run, **extra):
         s = summarize(run)
-        return {"outcome": s.outcome, "lateral_drift_m": s.lateral_drift_m,
-                "progress_x_m": float(run.head_xy[-1, 0] - run.head_xy[0, 0]), "t_final_s": s.t_final_s, **extra}
+        return {
+            "outcome": s.outcome,
+            "lateral_drift_m": s.lateral_drift_m,
+            "progress_x_m": float(run.head_xy[-1, 0] - run.head_xy[0, 0]),
+            "t_final_s": s.t_final_s,
+            **extra,
+        }
 
     session = make_session(scenario)
     out = {"none": describe(session.simulate(scenario))}
     search = auto_bias(scenario, session=session)
-    out["bias"] = describe(session.simulate(with_bias(scenario, search.bias_deg)), bias_deg=search.bias_deg,
-                           search_runs=search.runs)
+    out["bias"] = describe(
+        session.simulate(with_bias(scenario, search.bias_deg)), bias_deg=search.bias_deg, search_runs=search.runs
+    )
     out["feedback"] = describe(make_session(with_heading_control(scenario)).simulate(with_heading_control(scenario)))
     reverse = reversed_drive(scenario)
     reverse_session = make_session(reverse)
     out["reverse"] = describe(reverse_session.simulate(reverse))
     rsearch = auto_bias(reverse, session=reverse_session)
-    out["reverse+bias"] = describe(reverse_session.simulate(with_bias(reverse, rsearch.bias_deg)),
-                                   bias_deg=rsearch.bias_deg, search_runs=rsearch.runs)
+    out["reverse+bias"] = describe(
+        reverse_session.simulate(with_bias(reverse, rsearch.bias_deg)),
+        bias_deg=rsearch.bias_deg,
+        search_runs=rsearch.runs,
+    )
     return out
-

@@ -6,7 +6,6 @@ is SI. Library code converts to radians once, where it reads the field (e.g. gai
 
 import dataclasses
 from pathlib import Path
-from typing import Dict, List, Optional
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
 NUM_JOINTS = 13
@@ -27,10 +26,10 @@ class JointGait:
     """Per-joint override of the serpenoid parameters (unset fields keep the gait's values)."""
 
     joint: int = 0  # 1-based, 1 = between head and module 2
-    amplitude_deg: Optional[float] = None
-    frequency_deg_s: Optional[float] = None
-    phase_deg: Optional[float] = None  # phi_i itself, replacing offset + step rule
-    bias_deg: Optional[float] = None
+    amplitude_deg: float | None = None
+    frequency_deg_s: float | None = None
+    phase_deg: float | None = None  # phi_i itself, replacing offset + step rule
+    bias_deg: float | None = None
 
 
 @dataclasses.dataclass
@@ -43,7 +42,7 @@ class Gait:
     phase_step_deg: float = 40.0
     phase_offset_deg: float = 0.0
     bias_deg: float = 0.0
-    joints: List[JointGait] = dataclasses.field(default_factory=list)
+    joints: list[JointGait] = dataclasses.field(default_factory=list)
 
 
 @dataclasses.dataclass
@@ -59,7 +58,7 @@ class Servo:
     kp_Nm_per_rad: float = 20.0
     ki_Nm_per_rad_s: float = 5.0
     kd_Nm_s_per_rad: float = 0.2
-    torque_limit_Nm: Optional[float] = None  # None: the SDF's effort limit
+    torque_limit_Nm: float | None = None  # None: the SDF's effort limit
     # The proportional term acts on the reference predicted this far ahead, theta + lead theta_dot; with the
     # lead one time step and a stiff Kp the joint is the paper's kinematic joint (replay.REPLAY_SERVO).
     lead_s: float = 0.0
@@ -107,8 +106,8 @@ class Start:
 class Stop:
     """Stop at whichever comes first; null disables a rule."""
 
-    line_x_m: Optional[float] = 3.18
-    revolutions: Optional[float] = 2.0
+    line_x_m: float | None = 3.18
+    revolutions: float | None = 2.0
     time_limit_s: float = 30.0
 
 
@@ -142,13 +141,13 @@ class Scenario:
     servo: Servo = dataclasses.field(default_factory=Servo)
     friction: Friction = dataclasses.field(default_factory=Friction)
     # Physical effects beyond the paper's model by parameter key (effects.py); empty is the paper's model.
-    effects: Dict[str, float] = dataclasses.field(default_factory=dict)
-    failures: List[Failure] = dataclasses.field(default_factory=list)
+    effects: dict[str, float] = dataclasses.field(default_factory=dict)
+    failures: list[Failure] = dataclasses.field(default_factory=list)
     start: Start = dataclasses.field(default_factory=Start)
     heading_control: HeadingControl = dataclasses.field(default_factory=HeadingControl)
     stop: Stop = dataclasses.field(default_factory=Stop)
     numerics: Numerics = dataclasses.field(default_factory=Numerics)
 
     @property
-    def failed_joints(self) -> List[int]:
+    def failed_joints(self) -> list[int]:
         return sorted({f.joint for f in self.failures})

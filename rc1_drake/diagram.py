@@ -60,8 +60,15 @@ def build_key(scenario: Scenario, joint_reference=None) -> tuple:
     else:
         source = ("joint_reference", id(joint_reference))
     s, n = scenario.servo, scenario.numerics
-    return source + (s.kp_Nm_per_rad, s.ki_Nm_per_rad_s, s.kd_Nm_s_per_rad, s.lead_s, n.time_step_s, n.log_period_s,
-                     dataclasses.astuple(scenario.heading_control))
+    return source + (
+        s.kp_Nm_per_rad,
+        s.ki_Nm_per_rad_s,
+        s.kd_Nm_s_per_rad,
+        s.lead_s,
+        n.time_step_s,
+        n.log_period_s,
+        dataclasses.astuple(scenario.heading_control),
+    )
 
 
 def add_heading_control(builder, plant, scenario: Scenario):
@@ -77,8 +84,11 @@ def add_heading_control(builder, plant, scenario: Scenario):
     dt = scenario.numerics.time_step_s
     # Input psi; state z = sum (psi - psi_ref) dt; bias = -kp (psi_ref - psi) - ki (-z) = kp (psi - psi_ref) + ki z.
     ref = math.radians(hc.heading_ref_deg)
-    sense = builder.AddSystem(AffineSystem(A=np.zeros((0, 0)), B=np.zeros((0, 2 * nq)), f0=np.zeros(0),
-                                           C=np.zeros((1, 0)), D=heading, y0=[-ref]))
+    sense = builder.AddSystem(
+        AffineSystem(
+            A=np.zeros((0, 0)), B=np.zeros((0, 2 * nq)), f0=np.zeros(0), C=np.zeros((1, 0)), D=heading, y0=[-ref]
+        )
+    )
     sense.set_name("heading_error")
     pi = builder.AddSystem(LinearSystem(A=[[1.0]], B=[[dt]], C=[[hc.ki_per_s]], D=[[hc.kp]], time_period=dt))
     pi.set_name("heading_controller")
@@ -98,8 +108,13 @@ def add_friction(builder, rc1, servo_power, servo_command_port, scenario: Scenar
     plant = rc1.plant
     servo = scenario.servo
     friction = builder.AddSystem(
-        FrictionForces(plant, rc1.geometry, scenario.friction, scenario.numerics.sgn_smoothing_m_s,
-                       servo_gains=(servo.kp_Nm_per_rad, servo.kd_Nm_s_per_rad))
+        FrictionForces(
+            plant,
+            rc1.geometry,
+            scenario.friction,
+            scenario.numerics.sgn_smoothing_m_s,
+            servo_gains=(servo.kp_Nm_per_rad, servo.kd_Nm_s_per_rad),
+        )
     )
     friction.set_name("friction")
     builder.Connect(plant.get_state_output_port(), friction.GetInputPort("plant_state"))
@@ -131,8 +146,9 @@ def build_diagram(scenario: Scenario, *, joint_reference=None) -> RC1Diagram:
     plant = rc1.plant
     if joint_reference is None:
         feedback = add_heading_control(builder, plant, scenario) if scenario.heading_control.active else None
-        desired_state, bias = add_gait_source(builder, commanded_gait(scenario.gait, scenario.effects),
-                                              bias_input=feedback)
+        desired_state, bias = add_gait_source(
+            builder, commanded_gait(scenario.gait, scenario.effects), bias_input=feedback
+        )
     else:
         source = builder.AddSystem(TrajectorySource(joint_reference, output_derivative_order=1))
         source.set_name("joint_reference")

@@ -15,7 +15,7 @@ Sign conventions are the README's: world x toward the line, y left, z up; a whee
 
 import dataclasses
 import math
-from typing import Callable, Dict, List, Optional
+from collections.abc import Callable
 
 import numpy as np
 
@@ -29,7 +29,7 @@ class EffectParameter:
     upper: float
     fitted: bool = True  # False: a setting the user chooses (which module, a reference speed), never fitted
     default: float = 0.0  # its value when the scenario leaves it out
-    probe: Optional[float] = None  # a small, clearly visible step for sensitivities (diagnose.py); None: 10% of the range
+    probe: float | None = None  # a small, clearly visible step for sensitivities (diagnose.py); None: 10% of the range
 
     @property
     def probe_step(self) -> float:
@@ -50,7 +50,7 @@ class ModelSetup:
     head_mu: float = 0.0
     joint_coulomb_Nm: float = 0.0
     wheel_toe_rad: float = 0.0
-    extra_forces: List[Callable] = dataclasses.field(default_factory=list)  # f(x) -> (16,) generalized force
+    extra_forces: list[Callable] = dataclasses.field(default_factory=list)  # f(x) -> (16,) generalized force
 
 
 @dataclasses.dataclass
@@ -98,33 +98,33 @@ class Effect:
     failed_joints_only: bool = False  # True: it acts only in failed joints (a trial without one is unchanged)
     sensor: bool = False  # True: a measurement fault (the robot is the paper's; what its sensors report is not)
 
-    def configure(self, setup: ModelSetup, values: Dict[str, float]) -> None:
+    def configure(self, setup: ModelSetup, values: dict[str, float]) -> None:
         """Change `setup` for parameter `values` (all of this effect's keys present)."""
 
-    def gait(self, gait: Gait, values: Dict[str, float]) -> Gait:
+    def gait(self, gait: Gait, values: dict[str, float]) -> Gait:
         """The gait the joints are commanded to follow, for runs driven by the gait."""
         return gait
 
-    def configure_sensors(self, sensors: SensorModel, values: Dict[str, float]) -> None:
+    def configure_sensors(self, sensors: SensorModel, values: dict[str, float]) -> None:
         """Change `sensors` for parameter `values` (a sensor fault's; physical effects leave them)."""
 
     @property
     def main(self) -> EffectParameter:
         return self.parameters[0]
 
-    def fitted(self) -> List[EffectParameter]:
+    def fitted(self) -> list[EffectParameter]:
         return [p for p in self.parameters if p.fitted]
 
-    def coordinates(self, values: Dict[str, float]) -> Dict[str, float]:
+    def coordinates(self, values: dict[str, float]) -> dict[str, float]:
         """Coordinates in which the residuals change smoothly (and, near 0, linearly) with the effect; a
         diagnosis fits these. By default the fitted parameters themselves."""
         return {p.key: values[p.key] for p in self.fitted()}
 
-    def coordinate_space(self) -> List[EffectParameter]:
+    def coordinate_space(self) -> list[EffectParameter]:
         """The coordinates' bounds and probe steps (parameters named by coordinate)."""
         return self.fitted()
 
-    def from_coordinates(self, coordinates: Dict[str, float]) -> Dict[str, float]:
+    def from_coordinates(self, coordinates: dict[str, float]) -> dict[str, float]:
         """The effect parameter values for `coordinates`."""
         return dict(coordinates)
 
@@ -132,8 +132,10 @@ class Effect:
 class GroundSlope(Effect):
     name = "ground_slope"
     summary = "a tilted floor: gravity pulls every module downhill, the normal forces fall by cos(slope)"
-    parameters = (EffectParameter("ground_slope_deg", 0.0, 20.0, probe=3.0),
-                  EffectParameter("ground_slope_direction_deg", -180.0, 180.0))  # downhill, counter-clockwise from +x
+    parameters = (
+        EffectParameter("ground_slope_deg", 0.0, 20.0, probe=3.0),
+        EffectParameter("ground_slope_direction_deg", -180.0, 180.0),
+    )  # downhill, counter-clockwise from +x
 
     # A diagnosis fits the tilt as a vector (downhill x and y components, degrees): at slope 0 the
     # direction has no effect at all, and the residuals are smooth in the components. It searches only
@@ -147,18 +149,22 @@ class GroundSlope(Effect):
         return {"ground_slope_x_deg": slope * math.cos(heading), "ground_slope_y_deg": slope * math.sin(heading)}
 
     def coordinate_space(self):
-        return [EffectParameter(f"ground_slope_{axis}_deg", -self.search_deg, self.search_deg, probe=3.0)
-                for axis in "xy"]
+        return [
+            EffectParameter(f"ground_slope_{axis}_deg", -self.search_deg, self.search_deg, probe=3.0) for axis in "xy"
+        ]
 
     def from_coordinates(self, coordinates):
         x, y = coordinates["ground_slope_x_deg"], coordinates["ground_slope_y_deg"]
-        return {"ground_slope_deg": min(math.hypot(x, y), self.main.upper),
-                "ground_slope_direction_deg": math.degrees(math.atan2(y, x))}
+        return {
+            "ground_slope_deg": min(math.hypot(x, y), self.main.upper),
+            "ground_slope_direction_deg": math.degrees(math.atan2(y, x)),
+        }
 
     def configure(self, setup, values):
         slope, heading = math.radians(values["ground_slope_deg"]), math.radians(values["ground_slope_direction_deg"])
-        setup.gravity = GRAVITY_M_S2 * np.array([math.sin(slope) * math.cos(heading),
-                                                 math.sin(slope) * math.sin(heading), -math.cos(slope)])
+        setup.gravity = GRAVITY_M_S2 * np.array(
+            [math.sin(slope) * math.cos(heading), math.sin(slope) * math.sin(heading), -math.cos(slope)]
+        )
 
 
 class LateralFrictionAsymmetry(Effect):
@@ -201,8 +207,10 @@ class JointCoulombFriction(Effect):
 class StribeckFriction(Effect):
     name = "stribeck_friction"
     summary = "lateral breakaway friction: mu_lat (1 + r exp(-(v/v_s)^2)) at low slip speed"
-    parameters = (EffectParameter("stribeck_ratio", 0.0, 3.0, probe=0.5),
-                  EffectParameter("stribeck_speed_m_s", 1e-3, 0.2, fitted=False, default=0.01))
+    parameters = (
+        EffectParameter("stribeck_ratio", 0.0, 3.0, probe=0.5),
+        EffectParameter("stribeck_speed_m_s", 1e-3, 0.2, fitted=False, default=0.01),
+    )
 
     def configure(self, setup, values):
         setup.stribeck_ratio, setup.stribeck_speed_m_s = values["stribeck_ratio"], values["stribeck_speed_m_s"]
@@ -220,8 +228,10 @@ class WheelToe(Effect):
 class ModulePayload(Effect):
     name = "module_payload"
     summary = "an extra mass at one module's centre: its inertia, and its wheel's normal force"
-    parameters = (EffectParameter("payload_kg", 0.0, 2.0, probe=0.3),
-                  EffectParameter("payload_module", 1, 14, fitted=False, default=7))
+    parameters = (
+        EffectParameter("payload_kg", 0.0, 2.0, probe=0.3),
+        EffectParameter("payload_module", 1, 14, fitted=False, default=7),
+    )
     differentiable = False
 
     def configure(self, setup, values):
@@ -249,9 +259,16 @@ class ServoLag(Effect):
             return gait
         amp, omega, phase, bias = serpenoid_parameters(gait)
         gain, delay = 1.0 / np.sqrt(1.0 + (omega * tau) ** 2), np.arctan(omega * tau)
-        joints = [JointGait(joint=j + 1, amplitude_deg=math.degrees(amp[j] * gain[j]),
-                            frequency_deg_s=math.degrees(omega[j]), phase_deg=math.degrees(phase[j] + delay[j]),
-                            bias_deg=math.degrees(bias[j])) for j in range(NUM_JOINTS)]
+        joints = [
+            JointGait(
+                joint=j + 1,
+                amplitude_deg=math.degrees(amp[j] * gain[j]),
+                frequency_deg_s=math.degrees(omega[j]),
+                phase_deg=math.degrees(phase[j] + delay[j]),
+                bias_deg=math.degrees(bias[j]),
+            )
+            for j in range(NUM_JOINTS)
+        ]
         return dataclasses.replace(gait, joints=joints)
 
 
@@ -281,8 +298,9 @@ class PotentiometerFault(Effect):
     def _in_loop(self, values) -> bool:
         key = self.parameters[1].key
         if values[key] not in (0.0, 1.0):
-            raise Rc1Error(f"effects.{key}: must be 1 (the servo's loop) or 0 (the acquisition only), "
-                           f"got {values[key]}")
+            raise Rc1Error(
+                f"effects.{key}: must be 1 (the servo's loop) or 0 (the acquisition only), got {values[key]}"
+            )
         return values[key] == 1.0
 
     def _with_joint(self, gait: Gait, **fields) -> Gait:
@@ -300,8 +318,11 @@ class PotentiometerOffset(PotentiometerFault):
     search = 5.0  # deg
 
     def __init__(self, joint: int):
-        super().__init__(joint, EffectParameter(f"potentiometer_offset_j{joint}_deg", -10.0, 10.0, probe=1.0),
-                         f"joint {joint}'s potentiometer reads the angle plus a constant offset (sensor fault)")
+        super().__init__(
+            joint,
+            EffectParameter(f"potentiometer_offset_j{joint}_deg", -10.0, 10.0, probe=1.0),
+            f"joint {joint}'s potentiometer reads the angle plus a constant offset (sensor fault)",
+        )
 
     def configure_sensors(self, sensors, values):
         self._in_loop(values)
@@ -325,8 +346,11 @@ class PotentiometerGain(PotentiometerFault):
     search = 0.1  # 10%
 
     def __init__(self, joint: int):
-        super().__init__(joint, EffectParameter(f"potentiometer_gain_j{joint}_error", -0.5, 0.5, probe=0.02),
-                         f"joint {joint}'s potentiometer reads the angle times (1 + a gain error) (sensor fault)")
+        super().__init__(
+            joint,
+            EffectParameter(f"potentiometer_gain_j{joint}_error", -0.5, 0.5, probe=0.02),
+            f"joint {joint}'s potentiometer reads the angle times (1 + a gain error) (sensor fault)",
+        )
 
     def configure_sensors(self, sensors, values):
         self._in_loop(values)
@@ -356,8 +380,10 @@ class CameraDelay(Effect):
 class ImuFault(Effect):
     name = "imu_fault"
     summary = "the head IMU reports (1 + scale error) x yaw rate + a bias common to every trial"
-    parameters = (EffectParameter("imu_scale_error", -0.5, 0.5, probe=0.05),
-                  EffectParameter("imu_bias_rad_s", -0.5, 0.5, probe=0.02))
+    parameters = (
+        EffectParameter("imu_scale_error", -0.5, 0.5, probe=0.05),
+        EffectParameter("imu_bias_rad_s", -0.5, 0.5, probe=0.02),
+    )
     sensor = True
     differentiable = False
 
@@ -366,7 +392,7 @@ class ImuFault(Effect):
         sensors.imu_bias_rad_s += values["imu_bias_rad_s"]
 
 
-LIBRARY: Dict[str, Effect] = {}
+LIBRARY: dict[str, Effect] = {}
 
 
 def register(effect: Effect) -> Effect:
@@ -379,10 +405,21 @@ def register(effect: Effect) -> Effect:
     return effect
 
 
-for _effect in (GroundSlope(), LateralFrictionAsymmetry(), LongitudinalFrictionAsymmetry(), HeadDrag(),
-                JointCoulombFriction(), StribeckFriction(), WheelToe(), ModulePayload(), ServoLag(),
-                *(PotentiometerOffset(j) for j in range(1, NUM_JOINTS + 1)),
-                *(PotentiometerGain(j) for j in range(1, NUM_JOINTS + 1)), CameraDelay(), ImuFault()):
+for _effect in (
+    GroundSlope(),
+    LateralFrictionAsymmetry(),
+    LongitudinalFrictionAsymmetry(),
+    HeadDrag(),
+    JointCoulombFriction(),
+    StribeckFriction(),
+    WheelToe(),
+    ModulePayload(),
+    ServoLag(),
+    *(PotentiometerOffset(j) for j in range(1, NUM_JOINTS + 1)),
+    *(PotentiometerGain(j) for j in range(1, NUM_JOINTS + 1)),
+    CameraDelay(),
+    ImuFault(),
+):
     register(_effect)
 
 
@@ -390,7 +427,7 @@ for _effect in (GroundSlope(), LateralFrictionAsymmetry(), LongitudinalFrictionA
 CANDIDATE_GROUPS = {"physical": lambda e: not e.sensor, "sensor": lambda e: e.sensor}
 
 
-def candidate_names(names: Optional[List[str]] = None) -> List[str]:
+def candidate_names(names: list[str] | None = None) -> list[str]:
     """Effect names, with the groups expanded; by default the physical effects. The sensor faults are asked for
     (`sensor`): from the motion alone a bend at one joint mimics a toe or a failed joint's dry friction
     (docs/findings.md), so on by default they would blur what the physics tells."""
@@ -401,36 +438,36 @@ def candidate_names(names: Optional[List[str]] = None) -> List[str]:
         elif name in LIBRARY:
             out.append(name)
         else:
-            raise ValueError(f"unknown effect '{name}' (known: {', '.join(LIBRARY)}; groups: "
-                             f"{', '.join(CANDIDATE_GROUPS)})")
+            raise ValueError(
+                f"unknown effect '{name}' (known: {', '.join(LIBRARY)}; groups: {', '.join(CANDIDATE_GROUPS)})"
+            )
     return list(dict.fromkeys(out))
 
 
-def potentiometer_faults(joints) -> List[str]:
+def potentiometer_faults(joints) -> list[str]:
     """The sensor-fault candidates of these joints' potentiometers (1-based joint numbers)."""
-    return [e.name for e in LIBRARY.values()
-            if isinstance(e, PotentiometerFault) and e.joint in set(joints)]
+    return [e.name for e in LIBRARY.values() if isinstance(e, PotentiometerFault) and e.joint in set(joints)]
 
 
-def parameter_owner(key: str) -> Optional[Effect]:
+def parameter_owner(key: str) -> Effect | None:
     return next((e for e in LIBRARY.values() if any(p.key == key for p in e.parameters)), None)
 
 
-def parameter(key: str) -> Optional[EffectParameter]:
+def parameter(key: str) -> EffectParameter | None:
     """The effect parameter with this key, or None."""
     return next((p for e in LIBRARY.values() for p in e.parameters if p.key == key), None)
 
 
-def effect_values(effects: Dict[str, float], effect: Effect) -> Dict[str, float]:
+def effect_values(effects: dict[str, float], effect: Effect) -> dict[str, float]:
     return {p.key: float(effects.get(p.key, p.default)) for p in effect.parameters}
 
 
-def active(effects: Dict[str, float]) -> List[Effect]:
+def active(effects: dict[str, float]) -> list[Effect]:
     """The effects whose parameters `effects` sets (in library order)."""
     return [e for e in LIBRARY.values() if any(p.key in effects for p in e.parameters)]
 
 
-def validate_effects(effects: Dict[str, float], *, where: str) -> None:
+def validate_effects(effects: dict[str, float], *, where: str) -> None:
     """Rc1Error naming the first unknown key or out-of-range value."""
     for key, value in effects.items():
         p = parameter(key)
@@ -456,13 +493,12 @@ def parse_effect(text: str) -> tuple:
         raise ValueError(f"effect '{name}': '{value}' is not a number") from None
 
 
-def coordinate_owner(name: str) -> Optional[Effect]:
+def coordinate_owner(name: str) -> Effect | None:
     """The effect with a fitted parameter or a diagnosis coordinate called `name`, or None."""
-    return next((e for e in LIBRARY.values()
-                 if any(p.key == name for p in (*e.fitted(), *e.coordinate_space()))), None)
+    return next((e for e in LIBRARY.values() if any(p.key == name for p in (*e.fitted(), *e.coordinate_space()))), None)
 
 
-def shifted(effects: Dict[str, float], name: str, delta: float) -> Dict[str, float]:
+def shifted(effects: dict[str, float], name: str, delta: float) -> dict[str, float]:
     """`effects` with the fitted parameter or coordinate `name` (coordinate_owner) moved by `delta`."""
     effect = coordinate_owner(name)
     if effect is None:
@@ -475,14 +511,14 @@ def shifted(effects: Dict[str, float], name: str, delta: float) -> Dict[str, flo
     return {**effects, **effect.from_coordinates(coordinates)}
 
 
-def commanded_gait(gait: Gait, effects: Dict[str, float]) -> Gait:
+def commanded_gait(gait: Gait, effects: dict[str, float]) -> Gait:
     """The gait as the joints receive it, after the effects that act on the command (servo_lag)."""
     for effect in active(effects):
         gait = effect.gait(gait, effect_values(effects, effect))
     return gait
 
 
-def sensor_model(effects: Dict[str, float]) -> SensorModel:
+def sensor_model(effects: dict[str, float]) -> SensorModel:
     """The sensors as the active sensor faults make them."""
     sensors = SensorModel(angle_offsets_rad=np.zeros(NUM_JOINTS))
     for effect in active(effects):
@@ -490,14 +526,14 @@ def sensor_model(effects: Dict[str, float]) -> SensorModel:
     return sensors
 
 
-def model_setup(effects: Dict[str, float]) -> ModelSetup:
+def model_setup(effects: dict[str, float]) -> ModelSetup:
     setup = ModelSetup(gravity=np.array([0.0, 0.0, -GRAVITY_M_S2]))
     for effect in active(effects):
         effect.configure(setup, effect_values(effects, effect))
     return setup
 
 
-def apply_effects(built, context, effects: Dict[str, float], *, friction, sgn_smoothing_m_s: float) -> ModelSetup:
+def apply_effects(built, context, effects: dict[str, float], *, friction, sgn_smoothing_m_s: float) -> ModelSetup:
     """Write the friction and the effects into `context` (after SetDefaultContext): gravity, payload, the
     friction parameters (friction.friction_parameters: coefficients, friction-law terms, normal forces,
     wheel toe), explicit forces. Every run calls it, so nothing of a previous run's effects stays."""
@@ -509,7 +545,8 @@ def apply_effects(built, context, effects: Dict[str, float], *, friction, sgn_sm
     plant.mutable_gravity_field().set_gravity_vector(setup.gravity)  # the plant's, shared by its contexts
     set_payload(plant, plant.GetMyMutableContextFromRoot(context), setup.payload_module, setup.payload_kg)
     system.parameters(system.GetMyMutableContextFromRoot(context))[:] = friction_parameters(
-        friction=friction, sgn_smoothing_m_s=sgn_smoothing_m_s, setup=setup, geometry=built.rc1.geometry)
+        friction=friction, sgn_smoothing_m_s=sgn_smoothing_m_s, setup=setup, geometry=built.rc1.geometry
+    )
     system.extra_forces = list(setup.extra_forces)
     system.gravity_in_plane = bool(setup.gravity[0] or setup.gravity[1])
     return setup

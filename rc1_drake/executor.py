@@ -24,6 +24,7 @@ def make_executor(*, workers=None, scheduler=None):
         finally:
             client.close()
     else:
-        with ProcessPoolExecutor(max_workers=workers or os.cpu_count() or 1,
-                                 mp_context=multiprocessing.get_context("spawn")) as pool:
+        with ProcessPoolExecutor(
+            max_workers=workers or os.cpu_count() or 1, mp_context=multiprocessing.get_context("spawn")
+        ) as pool:
             yield pool

@@ -65,7 +65,7 @@ def coulomb_law(u, mu_n, eps, asymmetry, ratio, speed, clip=True):
     root = np.sqrt(u * u + eps * eps)
     s = u / root
     ds = eps * eps / (root * root * root)
-    decay = np.exp(-(u / speed) ** 2) if ratio != 0.0 else 0.0
+    decay = np.exp(-((u / speed) ** 2)) if ratio != 0.0 else 0.0
     magnitude = mu_n * (1.0 + asymmetry * s) * (1.0 + ratio * decay)
     slope = mu_n * (asymmetry * ds * (1.0 + ratio * decay) - (1.0 + asymmetry * s) * ratio * decay * 2.0 * u / speed**2)
     tangent = slope * s + magnitude * ds
@@ -85,21 +85,38 @@ def _coulomb(u, mu_n, eps, asymmetry, ratio, speed):
 def _wheel_coulomb(v_long, v_lat, mu_long, mu_lat, normal_force, eps, shape):
     """_coulomb's (force, secant, tangent) along the wheels and across them; shape = [lateral asymmetry,
     longitudinal asymmetry, Stribeck ratio, Stribeck speed] (the Stribeck terms act laterally only)."""
-    return (_coulomb(v_long, mu_long * normal_force, eps, shape[1], 0.0, shape[3]),
-            _coulomb(v_lat, mu_lat * normal_force, eps, shape[0], shape[2], shape[3]))
+    return (
+        _coulomb(v_long, mu_long * normal_force, eps, shape[1], 0.0, shape[3]),
+        _coulomb(v_lat, mu_lat * normal_force, eps, shape[0], shape[2], shape[3]),
+    )
 
 
 @jit
 def _wheel_forces(v_long, v_lat, mu_long, mu_lat, c_long, c_lat, normal_force, eps, shape):
     if eps == 0.0:  # the exact sign: the paper's law (shape terms need eps > 0)
-        return (-(c_long * v_long + mu_long * normal_force * np.sign(v_long)),
-                -(c_lat * v_lat + mu_lat * normal_force * np.sign(v_lat)))
+        return (
+            -(c_long * v_long + mu_long * normal_force * np.sign(v_long)),
+            -(c_lat * v_lat + mu_lat * normal_force * np.sign(v_lat)),
+        )
     along, across = _wheel_coulomb(v_long, v_lat, mu_long, mu_lat, normal_force, eps, shape)
     return -(c_long * v_long + along[0]), -(c_lat * v_lat + across[0])
 
 
-def wheel_friction_forces(v_long, v_lat, mu_long, mu_lat, c_long, c_lat, normal_force, eps, *, lat_asymmetry=0.0,
-                          long_asymmetry=0.0, stribeck_ratio=0.0, stribeck_speed_m_s=0.01):
+def wheel_friction_forces(
+    v_long,
+    v_lat,
+    mu_long,
+    mu_lat,
+    c_long,
+    c_lat,
+    normal_force,
+    eps,
+    *,
+    lat_asymmetry=0.0,
+    long_asymmetry=0.0,
+    stribeck_ratio=0.0,
+    stribeck_speed_m_s=0.01,
+):
     """Longitudinal and lateral friction force on each wheel, in the wheel's frame (Eqs. 4-5).
 
     v_long, v_lat: the wheel centre's velocity along its rolling and lateral axes (m/s);
@@ -108,8 +125,17 @@ def wheel_friction_forces(v_long, v_lat, mu_long, mu_lat, c_long, c_lat, normal_
     becomes mu N (1 + a sgn(v)) sgn(v), and laterally also (1 + r exp(-(v/v_s)^2)) (Stribeck).
     """
     shape = np.array([lat_asymmetry, long_asymmetry, stribeck_ratio, stribeck_speed_m_s], dtype=float)
-    return _wheel_forces(np.asarray(v_long, dtype=float), np.asarray(v_lat, dtype=float), mu_long, mu_lat, c_long,
-                         c_lat, np.asarray(normal_force, dtype=float), eps, shape)
+    return _wheel_forces(
+        np.asarray(v_long, dtype=float),
+        np.asarray(v_lat, dtype=float),
+        mu_long,
+        mu_lat,
+        c_long,
+        c_lat,
+        np.asarray(normal_force, dtype=float),
+        eps,
+        shape,
+    )
 
 
 @jit
@@ -185,9 +211,30 @@ def jacobian_span(jac_long, jac_lat, w):
 
 
 @jit
-def assemble_step(v_next, tangent, jac_long, jac_lat, spans, mass_damped, dt, mu_long, mu_lat, c_long, c_lat,
-                  normal_force, eps, shape, jac_head, head_coulomb, joint_coulomb, joint_eps, servo_offset, servo_rate,
-                  servo_power, exact=False):
+def assemble_step(
+    v_next,
+    tangent,
+    jac_long,
+    jac_lat,
+    spans,
+    mass_damped,
+    dt,
+    mu_long,
+    mu_lat,
+    c_long,
+    c_lat,
+    normal_force,
+    eps,
+    shape,
+    jac_head,
+    head_coulomb,
+    joint_coulomb,
+    joint_eps,
+    servo_offset,
+    servo_rate,
+    servo_power,
+    exact=False,
+):
     """The step's generalized force f(v+) (wheels, head, joint Coulomb, servos; Eqs. 4-5) and the matrix
     mass_damped + dt * (rate of -f): its tangent (Newton) if `tangent`, else its secant (the start, which
     linearizes each Coulomb term through the origin); `exact`: the tangent unclipped (coulomb_law). Also returns
@@ -233,13 +280,53 @@ def assemble_step(v_next, tangent, jac_long, jac_lat, spans, mass_damped, dt, mu
 
 
 @jit
-def _step_residual(v_next, jac_long, jac_lat, spans, mass_damped, momentum_free, dt, mu_long, mu_lat, c_long, c_lat,
-                   normal_force, eps, shape, jac_head, head_coulomb, joint_coulomb, joint_eps, servo_offset,
-                   servo_rate, servo_power):
+def _step_residual(
+    v_next,
+    jac_long,
+    jac_lat,
+    spans,
+    mass_damped,
+    momentum_free,
+    dt,
+    mu_long,
+    mu_lat,
+    c_long,
+    c_lat,
+    normal_force,
+    eps,
+    shape,
+    jac_head,
+    head_coulomb,
+    joint_coulomb,
+    joint_eps,
+    servo_offset,
+    servo_rate,
+    servo_power,
+):
     """The backward-Euler step's residual M v+ - p_free - dt f(v+) (with c_joint in M) and its Jacobian."""
-    force, matrix, _ = assemble_step(v_next, True, jac_long, jac_lat, spans, mass_damped, dt, mu_long, mu_lat, c_long,
-                                     c_lat, normal_force, eps, shape, jac_head, head_coulomb, joint_coulomb, joint_eps,
-                                     servo_offset, servo_rate, servo_power)
+    force, matrix, _ = assemble_step(
+        v_next,
+        True,
+        jac_long,
+        jac_lat,
+        spans,
+        mass_damped,
+        dt,
+        mu_long,
+        mu_lat,
+        c_long,
+        c_lat,
+        normal_force,
+        eps,
+        shape,
+        jac_head,
+        head_coulomb,
+        joint_coulomb,
+        joint_eps,
+        servo_offset,
+        servo_rate,
+        servo_power,
+    )
     return mass_damped @ v_next - momentum_free - dt * force, matrix
 
 
@@ -248,13 +335,53 @@ MAX_HALVINGS = 12
 
 
 @jit
-def _implicit_friction_force(jac_long, jac_lat, joint_damping, mass_matrix, momentum_free, v, dt, mu_long, mu_lat,
-                             c_long, c_lat, normal_force, eps, newton_steps, shape, jac_head, head_coulomb,
-                             joint_coulomb, joint_eps, servo_offset, servo_rate, servo_power):
+def _implicit_friction_force(
+    jac_long,
+    jac_lat,
+    joint_damping,
+    mass_matrix,
+    momentum_free,
+    v,
+    dt,
+    mu_long,
+    mu_lat,
+    c_long,
+    c_lat,
+    normal_force,
+    eps,
+    newton_steps,
+    shape,
+    jac_head,
+    head_coulomb,
+    joint_coulomb,
+    joint_eps,
+    servo_offset,
+    servo_rate,
+    servo_power,
+):
     mass_damped = mass_matrix + dt * np.diag(joint_damping)
     spans = np.array([jacobian_span(jac_long, jac_lat, w) for w in range(jac_long.shape[0])])
-    args = (jac_long, jac_lat, spans, mass_damped, dt, mu_long, mu_lat, c_long, c_lat, normal_force, eps, shape,
-            jac_head, head_coulomb, joint_coulomb, joint_eps, servo_offset, servo_rate, servo_power)
+    args = (
+        jac_long,
+        jac_lat,
+        spans,
+        mass_damped,
+        dt,
+        mu_long,
+        mu_lat,
+        c_long,
+        c_lat,
+        normal_force,
+        eps,
+        shape,
+        jac_head,
+        head_coulomb,
+        joint_coulomb,
+        joint_eps,
+        servo_offset,
+        servo_rate,
+        servo_power,
+    )
     # The secant start: each Coulomb term through the origin at its rate at v; the servos as they stand at
     # v, linear where not saturated, a constant torque where saturated.
     _, matrix, linear = assemble_step(v, False, *args)
@@ -263,9 +390,29 @@ def _implicit_friction_force(jac_long, jac_lat, joint_damping, mass_matrix, mome
     # Newton steps from that secant start, each backtracked until the residual's norm falls (Armijo): a plain
     # Newton step cycles where the servo clamp or a Coulomb kink switches within the step, and the servos then
     # chatter (seen at 1 ms on noisy measured angles with two undamped steps).
-    residual, matrix = _step_residual(v_next, jac_long, jac_lat, spans, mass_damped, momentum_free, dt, mu_long,
-                                      mu_lat, c_long, c_lat, normal_force, eps, shape, jac_head, head_coulomb,
-                                      joint_coulomb, joint_eps, servo_offset, servo_rate, servo_power)
+    residual, matrix = _step_residual(
+        v_next,
+        jac_long,
+        jac_lat,
+        spans,
+        mass_damped,
+        momentum_free,
+        dt,
+        mu_long,
+        mu_lat,
+        c_long,
+        c_lat,
+        normal_force,
+        eps,
+        shape,
+        jac_head,
+        head_coulomb,
+        joint_coulomb,
+        joint_eps,
+        servo_offset,
+        servo_rate,
+        servo_power,
+    )
     for _ in range(newton_steps):
         step = spd_solve(matrix, residual)
         if np.abs(step).max() < NEWTON_TOLERANCE_M_S:  # converged: take the last step, nothing left to check
@@ -276,9 +423,28 @@ def _implicit_friction_force(jac_long, jac_lat, joint_damping, mass_matrix, mome
         for _ in range(MAX_HALVINGS):
             trial = v_next - alpha * step
             trial_residual, trial_matrix = _step_residual(
-                trial, jac_long, jac_lat, spans, mass_damped, momentum_free, dt, mu_long, mu_lat, c_long, c_lat,
-                normal_force, eps, shape, jac_head, head_coulomb, joint_coulomb, joint_eps, servo_offset, servo_rate,
-                servo_power)
+                trial,
+                jac_long,
+                jac_lat,
+                spans,
+                mass_damped,
+                momentum_free,
+                dt,
+                mu_long,
+                mu_lat,
+                c_long,
+                c_lat,
+                normal_force,
+                eps,
+                shape,
+                jac_head,
+                head_coulomb,
+                joint_coulomb,
+                joint_eps,
+                servo_offset,
+                servo_rate,
+                servo_power,
+            )
             if trial_residual @ trial_residual <= (1.0 - 1e-4 * alpha) * norm:
                 break
             alpha *= 0.5
@@ -290,9 +456,29 @@ def _implicit_friction_force(jac_long, jac_lat, joint_damping, mass_matrix, mome
     return (mass_matrix @ v_next - momentum_free) / dt - servo, servo  # the plant applies the servo torque itself
 
 
-def implicit_friction_force(jac_long, jac_lat, joint_damping, mass_matrix, momentum_free, v, dt, mu_long, mu_lat,
-                            c_long, c_lat, normal_force, eps, newton_steps, *, shape=PAPER_SHAPE, jac_head=None,
-                            head_coulomb=0.0, joint_coulomb=None, joint_eps=0.01, servo=None):
+def implicit_friction_force(
+    jac_long,
+    jac_lat,
+    joint_damping,
+    mass_matrix,
+    momentum_free,
+    v,
+    dt,
+    mu_long,
+    mu_lat,
+    c_long,
+    c_lat,
+    normal_force,
+    eps,
+    newton_steps,
+    *,
+    shape=PAPER_SHAPE,
+    jac_head=None,
+    head_coulomb=0.0,
+    joint_coulomb=None,
+    joint_eps=0.01,
+    servo=None,
+):
     """Generalized friction force of one backward-Euler step (module docstring).
 
     jac_long, jac_lat: (W, nv) wheel velocity Jacobians along the rolling and lateral axes;
@@ -308,11 +494,29 @@ def implicit_friction_force(jac_long, jac_lat, joint_damping, mass_matrix, momen
     nv = len(v)
     offset, rate, power = (np.zeros(nv),) * 3 if servo is None else (np.asarray(s, dtype=float) for s in servo)
     force, torque = _implicit_friction_force(
-        jac_long, jac_lat, joint_damping, mass_matrix, momentum_free, v, dt, mu_long, mu_lat, c_long, c_lat,
-        normal_force, eps, newton_steps, np.asarray(shape, dtype=float),
-        np.zeros((2, nv)) if jac_head is None else np.ascontiguousarray(jac_head, dtype=float), head_coulomb,
-        np.zeros(nv) if joint_coulomb is None else np.asarray(joint_coulomb, dtype=float), joint_eps,
-        offset, rate, power)
+        jac_long,
+        jac_lat,
+        joint_damping,
+        mass_matrix,
+        momentum_free,
+        v,
+        dt,
+        mu_long,
+        mu_lat,
+        c_long,
+        c_lat,
+        normal_force,
+        eps,
+        newton_steps,
+        np.asarray(shape, dtype=float),
+        np.zeros((2, nv)) if jac_head is None else np.ascontiguousarray(jac_head, dtype=float),
+        head_coulomb,
+        np.zeros(nv) if joint_coulomb is None else np.asarray(joint_coulomb, dtype=float),
+        joint_eps,
+        offset,
+        rate,
+        power,
+    )
     return force if servo is None else (force, torque)
 
 
@@ -341,8 +545,12 @@ def friction_parameters(*, friction: Friction, sgn_smoothing_m_s: float, setup, 
     nw = len(geometry.wheel_module)
     params = np.zeros(PER_WHEEL + 2 * nw)
     params[: EPS + 1] = FrictionForces.pack(friction, sgn_smoothing_m_s)
-    params[SHAPE] = [setup.lateral_asymmetry, setup.longitudinal_asymmetry, setup.stribeck_ratio,
-                     setup.stribeck_speed_m_s]
+    params[SHAPE] = [
+        setup.lateral_asymmetry,
+        setup.longitudinal_asymmetry,
+        setup.stribeck_ratio,
+        setup.stribeck_speed_m_s,
+    ]
     params[HEAD_MU] = setup.head_mu
     params[JOINT_COULOMB] = setup.joint_coulomb_Nm
     params[PAYLOAD_KG], params[PAYLOAD_MODULE] = setup.payload_kg, setup.payload_module
@@ -365,13 +573,28 @@ def toe_slice(num_wheels: int) -> slice:
 
 
 @jit
-def friction_problem(x, other_force, mass_matrix, dt, params, servo_command, servo_power, servo_gains,
-                     joint_in_parent, joint_in_child, wheel_module, wheel_offset, wheel_toe):
+def friction_problem(
+    x,
+    other_force,
+    mass_matrix,
+    dt,
+    params,
+    servo_command,
+    servo_power,
+    servo_gains,
+    joint_in_parent,
+    joint_in_child,
+    wheel_module,
+    wheel_offset,
+    wheel_toe,
+):
     """The implicit step's data at state x: wheel Jacobians along and across the wheels, joint damping,
     the free momentum, the friction-law terms and the servos' backward-Euler offset, rate and power."""
     nw = wheel_module.shape[0]
     toe = wheel_toe * np.exp(1j * params[PER_WHEEL + nw : PER_WHEEL + 2 * nw])
-    _, direction, jacobian = wheel_kinematics_kernel(x, joint_in_parent, joint_in_child, wheel_module, wheel_offset, toe)
+    _, direction, jacobian = wheel_kinematics_kernel(
+        x, joint_in_parent, joint_in_child, wheel_module, wheel_offset, toe
+    )
     local = np.conj(direction).reshape(-1, 1) * jacobian  # rows: v_long + i v_lat of each wheel
     jac_long = np.ascontiguousarray(local.real)
     jac_lat = np.ascontiguousarray(local.imag)
@@ -394,21 +617,91 @@ def friction_problem(x, other_force, mass_matrix, dt, params, servo_command, ser
     servo_offset[3:] = servo_command + kd * v[3:]
     servo_rate[3:] = kd + dt * kp
     power[3:] = servo_power
-    return (jac_long, jac_lat, joint_damping, mass_matrix @ v + dt * other_force, params[PER_WHEEL : PER_WHEEL + nw],
-            jac_head, params[HEAD_MU] * params[HEAD_NORMAL], joint_coulomb, servo_offset, servo_rate, power, toe)
+    return (
+        jac_long,
+        jac_lat,
+        joint_damping,
+        mass_matrix @ v + dt * other_force,
+        params[PER_WHEEL : PER_WHEEL + nw],
+        jac_head,
+        params[HEAD_MU] * params[HEAD_NORMAL],
+        joint_coulomb,
+        servo_offset,
+        servo_rate,
+        power,
+        toe,
+    )
 
 
 @jit
-def friction_step(x, other_force, mass_matrix, dt, params, newton_steps, servo_command, servo_power, servo_gains,
-                  joint_in_parent, joint_in_child, wheel_module, wheel_offset, wheel_toe):
-    (jac_long, jac_lat, joint_damping, momentum_free, normal, jac_head, head_coulomb, joint_coulomb, servo_offset,
-     servo_rate, power, _) = friction_problem(x, other_force, mass_matrix, dt, params, servo_command, servo_power,
-                                              servo_gains, joint_in_parent, joint_in_child, wheel_module,
-                                              wheel_offset, wheel_toe)
-    return _implicit_friction_force(jac_long, jac_lat, joint_damping, mass_matrix, momentum_free, x[x.shape[0] // 2:],
-                                    dt, params[MU_LONG], params[MU_LAT], params[C_LONG], params[C_LAT], normal,
-                                    params[EPS], newton_steps, params[SHAPE], jac_head, head_coulomb, joint_coulomb,
-                                    JOINT_EPS_RAD_S, servo_offset, servo_rate, power)
+def friction_step(
+    x,
+    other_force,
+    mass_matrix,
+    dt,
+    params,
+    newton_steps,
+    servo_command,
+    servo_power,
+    servo_gains,
+    joint_in_parent,
+    joint_in_child,
+    wheel_module,
+    wheel_offset,
+    wheel_toe,
+):
+    (
+        jac_long,
+        jac_lat,
+        joint_damping,
+        momentum_free,
+        normal,
+        jac_head,
+        head_coulomb,
+        joint_coulomb,
+        servo_offset,
+        servo_rate,
+        power,
+        _,
+    ) = friction_problem(
+        x,
+        other_force,
+        mass_matrix,
+        dt,
+        params,
+        servo_command,
+        servo_power,
+        servo_gains,
+        joint_in_parent,
+        joint_in_child,
+        wheel_module,
+        wheel_offset,
+        wheel_toe,
+    )
+    return _implicit_friction_force(
+        jac_long,
+        jac_lat,
+        joint_damping,
+        mass_matrix,
+        momentum_free,
+        x[x.shape[0] // 2 :],
+        dt,
+        params[MU_LONG],
+        params[MU_LAT],
+        params[C_LONG],
+        params[C_LAT],
+        normal,
+        params[EPS],
+        newton_steps,
+        params[SHAPE],
+        jac_head,
+        head_coulomb,
+        joint_coulomb,
+        JOINT_EPS_RAD_S,
+        servo_offset,
+        servo_rate,
+        power,
+    )
 
 
 class FrictionForces(LeafSystem):
@@ -430,8 +723,9 @@ class FrictionForces(LeafSystem):
 
     NEWTON_STEPS = 20  # at most: the solve stops when a step moves no velocity by NEWTON_TOLERANCE_M_S
 
-    def __init__(self, plant, geometry: ChainGeometry, friction: Friction, sgn_smoothing_m_s: float, *,
-                 servo_gains=(0.0, 0.0)):
+    def __init__(
+        self, plant, geometry: ChainGeometry, friction: Friction, sgn_smoothing_m_s: float, *, servo_gains=(0.0, 0.0)
+    ):
         """servo_gains: the servo PID's (Kp, Kd), which the implicit step needs."""
         super().__init__()
         self._plant = plant
@@ -454,25 +748,35 @@ class FrictionForces(LeafSystem):
         self.extra_forces = []
         # Gravity has a component in the plane of motion only on a tilted floor; set by effects.apply_effects.
         self.gravity_in_plane = False
-        self._inputs = (self.DeclareVectorInputPort("plant_state", 2 * nq),
-                        self.DeclareVectorInputPort("servo_command", NUM_JOINTS),
-                        self.DeclareVectorInputPort("servo_power", NUM_JOINTS))
+        self._inputs = (
+            self.DeclareVectorInputPort("plant_state", 2 * nq),
+            self.DeclareVectorInputPort("servo_command", NUM_JOINTS),
+            self.DeclareVectorInputPort("servo_power", NUM_JOINTS),
+        )
         # Both outputs come from one solve, cached per step.
         step = self.DeclareCacheEntry(
             "implicit_step",
             ValueProducer(allocate=lambda: AbstractValue.Make(np.zeros(nq + NUM_JOINTS)), calc=self._calc_step),
-            {self.all_sources_ticket()})
-        self.DeclareVectorOutputPort("generalized_force", nq,
-                                     lambda context, out: out.SetFromVector(step.Eval(context)[:nq]),
-                                     prerequisites_of_calc={step.ticket()})
-        self.DeclareVectorOutputPort("servo_torque", NUM_JOINTS,
-                                     lambda context, out: out.SetFromVector(step.Eval(context)[nq:]),
-                                     prerequisites_of_calc={step.ticket()})
+            {self.all_sources_ticket()},
+        )
+        self.DeclareVectorOutputPort(
+            "generalized_force",
+            nq,
+            lambda context, out: out.SetFromVector(step.Eval(context)[:nq]),
+            prerequisites_of_calc={step.ticket()},
+        )
+        self.DeclareVectorOutputPort(
+            "servo_torque",
+            NUM_JOINTS,
+            lambda context, out: out.SetFromVector(step.Eval(context)[nq:]),
+            prerequisites_of_calc={step.ticket()},
+        )
 
     @staticmethod
     def pack(friction: Friction, sgn_smoothing_m_s: float) -> np.ndarray:
-        return np.array([friction.c_joint, friction.mu_lat, friction.mu_long, friction.c_lat, friction.c_long,
-                         sgn_smoothing_m_s])
+        return np.array(
+            [friction.c_joint, friction.mu_lat, friction.mu_long, friction.c_lat, friction.c_long, sgn_smoothing_m_s]
+        )
 
     @property
     def num_wheels(self) -> int:
@@ -497,9 +801,18 @@ class FrictionForces(LeafSystem):
             other += plant.CalcGravityGeneralizedForces(plant_context)
         # The plant applies gravity and the bias term itself; the extra forces only reach it through this output.
         extra = sum((force(x) for force in self.extra_forces), np.zeros(len(other))) if self.extra_forces else 0.0
-        friction, servo = friction_step(x, other + extra, plant.CalcMassMatrix(plant_context), self._dt, params,
-                                        self.NEWTON_STEPS, command_port.Eval(context), power_port.Eval(context),
-                                        self._servo_gains, *self._geometry)
+        friction, servo = friction_step(
+            x,
+            other + extra,
+            plant.CalcMassMatrix(plant_context),
+            self._dt,
+            params,
+            self.NEWTON_STEPS,
+            command_port.Eval(context),
+            power_port.Eval(context),
+            self._servo_gains,
+            *self._geometry,
+        )
         step = value.get_mutable_value()
         step[: len(other)] = friction + extra
-        step[len(other):] = servo[3:]
+        step[len(other) :] = servo[3:]

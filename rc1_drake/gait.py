@@ -20,8 +20,12 @@ def serpenoid_parameters(gait: Gait):
     bias = np.full(NUM_JOINTS, gait.bias_deg)
     for jg in gait.joints:
         j = jg.joint - 1
-        for arr, value in ((amp, jg.amplitude_deg), (freq, jg.frequency_deg_s), (phase, jg.phase_deg),
-                           (bias, jg.bias_deg)):
+        for arr, value in (
+            (amp, jg.amplitude_deg),
+            (freq, jg.frequency_deg_s),
+            (phase, jg.phase_deg),
+            (bias, jg.bias_deg),
+        ):
             if value is not None:
                 arr[j] = value
     return np.radians(amp), np.radians(freq), np.radians(phase), np.radians(bias)

@@ -11,7 +11,6 @@ import json
 import math
 import os
 from pathlib import Path
-from typing import Dict, List, Optional
 
 import numpy as np
 
@@ -22,8 +21,16 @@ REQUIRED_COLUMNS = ("t_s",) + JOINT_COLUMNS + ("head_yaw_rate_rad_s",)
 CAMERA_COLUMNS = ("head_x_m", "head_y_m", "head_yaw_rad")
 GAIT_KEYS = ("amplitude_deg", "frequency_deg_s", "phase_step_deg", "phase_offset_deg", "bias_deg")
 STOP_TYPES = {"line": "line_x_m", "revolutions": "count", "time": "t_s"}
-JSON_KEYS = {"trial_id", "failed_joints", "gait", "stop", "initial_head_pose", "final_head_xy_m", "notes",
-             "initial_head_rates"}
+JSON_KEYS = {
+    "trial_id",
+    "failed_joints",
+    "gait",
+    "stop",
+    "initial_head_pose",
+    "final_head_xy_m",
+    "notes",
+    "initial_head_rates",
+}
 OPTIONAL_JSON_KEYS = ("notes", "initial_head_rates")
 POSE_KEYS = ("x_m", "y_m", "yaw_rad")
 RATE_KEYS = ("vx_m_s", "vy_m_s", "yaw_rate_rad_s")
@@ -52,7 +59,7 @@ class Stop:
 @dataclasses.dataclass
 class Trial:
     trial_id: str
-    failed_joints: List[int]  # 1-based
+    failed_joints: list[int]  # 1-based
     gait: Gait
     stop: Stop
     initial_head_pose: np.ndarray  # (3,) x_m, y_m, yaw_rad
@@ -60,15 +67,15 @@ class Trial:
     t: np.ndarray  # (N,) s, evenly sampled
     q: np.ndarray  # (N, 13) rad; NaN in the columns of failed joints
     head_yaw_rate: np.ndarray  # (N,) rad/s
-    camera: Optional[np.ndarray] = None  # (N, 3) x_m, y_m, yaw_rad; NaN where the camera missed the head
+    camera: np.ndarray | None = None  # (N, 3) x_m, y_m, yaw_rad; NaN where the camera missed the head
     notes: str = ""
-    source: Optional[Path] = None  # the JSON file it came from
+    source: Path | None = None  # the JSON file it came from
     # joint (1-based) -> its largest reading (deg, signed) where it passes the limit and the tolerance: a
     # measurement to explain (a potentiometer's offset or gain error), loaded with a warning
-    beyond_limit: Dict[int, float] = dataclasses.field(default_factory=dict)
+    beyond_limit: dict[int, float] = dataclasses.field(default_factory=dict)
     # (3,) the head's vx, vy (m/s) and yaw rate (rad/s) at t = 0, where the data give them (an optional key) or
     # a fit set them (diagnose.coordinates.start_coordinates); None: not known
-    initial_head_rates: Optional[np.ndarray] = None
+    initial_head_rates: np.ndarray | None = None
 
     @property
     def case(self) -> str:
@@ -77,14 +84,14 @@ class Trial:
         return label + ("+bias" if self.gait.bias_deg != 0.0 else "")
 
     @property
-    def working_joints(self) -> List[int]:
+    def working_joints(self) -> list[int]:
         return [j for j in range(1, NUM_JOINTS + 1) if j not in self.failed_joints]
 
 
 @dataclasses.dataclass
 class Campaign:
     path: Path
-    trials: List[Trial]
+    trials: list[Trial]
 
     def cases(self) -> dict:
         """Trials grouped by case, in order of first appearance."""
@@ -93,11 +100,11 @@ class Campaign:
             out.setdefault(trial.case, []).append(trial)
         return out
 
-    def warnings(self) -> List[str]:
+    def warnings(self) -> list[str]:
         """What the loader took in but the model cannot do, once per joint: readings past the joint limit."""
         return limit_warnings(self.trials)
 
-    def chosen(self, trial_ids=None) -> List[Trial]:
+    def chosen(self, trial_ids=None) -> list[Trial]:
         """The trials with these ids (all when None), in the campaign's order; Rc1Error for an id it lacks."""
         missing = sorted(set(trial_ids or []) - {t.trial_id for t in self.trials})
         if missing:
@@ -105,16 +112,18 @@ class Campaign:
         return [t for t in self.trials if trial_ids is None or t.trial_id in trial_ids]
 
 
-def limit_warnings(trials) -> List[str]:
+def limit_warnings(trials) -> list[str]:
     """One line per joint whose readings pass its limit (Trial.beyond_limit) in any of `trials`."""
     lines = []
     for joint in range(1, NUM_JOINTS + 1):
         seen = [(t.trial_id, t.beyond_limit[joint]) for t in trials if joint in t.beyond_limit]
         if seen:
             peak = max((v for _, v in seen), key=abs)
-            lines.append(f"joint {joint}'s potentiometer reads up to {peak:+.1f} deg, past the +-{JOINT_LIMIT_DEG:g} deg "
-                         f"limit, in {len(seen)} trial(s) ({', '.join(i for i, _ in seen[:3])}"
-                         f"{', ...' if len(seen) > 3 else ''}): an offset or gain error? Loaded as measured")
+            lines.append(
+                f"joint {joint}'s potentiometer reads up to {peak:+.1f} deg, past the +-{JOINT_LIMIT_DEG:g} deg "
+                f"limit, in {len(seen)} trial(s) ({', '.join(i for i, _ in seen[:3])}"
+                f"{', ...' if len(seen) > 3 else ''}): an offset or gain error? Loaded as measured"
+            )
     return lines
 
 
@@ -187,8 +196,16 @@ def _load_json(path: Path) -> dict:
     if "initial_head_rates" in data:
         given = _mapping(path, "initial_head_rates", data["initial_head_rates"], RATE_KEYS)
         rates = np.array([_number(path, f"initial_head_rates.{k}", given[k]) for k in RATE_KEYS])
-    return dict(trial_id=trial_id, failed_joints=sorted(failed), gait=gait, stop=stop, initial_head_pose=pose,
-                final_head_xy=final, notes=notes, initial_head_rates=rates)
+    return dict(
+        trial_id=trial_id,
+        failed_joints=sorted(failed),
+        gait=gait,
+        stop=stop,
+        initial_head_pose=pose,
+        final_head_xy=final,
+        notes=notes,
+        initial_head_rates=rates,
+    )
 
 
 def _load_csv(path: Path, failed_joints) -> dict:
@@ -247,7 +264,9 @@ def _load_csv(path: Path, failed_joints) -> dict:
     uneven = np.abs(steps - median) > SAMPLING_TOLERANCE * median
     if uneven.any():
         bad = int(np.flatnonzero(uneven)[0]) + 3
-        _fail(path, f"line {bad}, column t_s", f"not evenly sampled (step {steps[bad - 3]:.6g} s, usual {median:.6g} s)")
+        _fail(
+            path, f"line {bad}, column t_s", f"not evenly sampled (step {steps[bad - 3]:.6g} s, usual {median:.6g} s)"
+        )
     limit = math.radians(JOINT_LIMIT_DEG + JOINT_TOLERANCE_DEG)
     jump = math.radians(JUMP_TOLERANCE_DEG + JUMP_SPEED_FACTOR * SERVO_SPEED_DEG_S * median)
     q = np.full((len(t), NUM_JOINTS), np.nan)
@@ -257,27 +276,38 @@ def _load_csv(path: Path, failed_joints) -> dict:
         if j in failed_joints:
             if not np.isnan(data).all():
                 line = int(np.flatnonzero(~np.isnan(data))[0]) + 2
-                _fail(path, f"line {line}, column {name}", f"joint {j} is listed as failed but its potentiometer has data")
+                _fail(
+                    path, f"line {line}, column {name}", f"joint {j} is listed as failed but its potentiometer has data"
+                )
             continue
         if np.isnan(data).any():
             _fail(path, f"line {first_empty(name)}, column {name}", f"empty cell for working joint {j}")
         peak = float(np.abs(data).max())
         line = int(np.argmax(np.abs(data))) + 2
         if peak > DEGREES_HINT_RAD:
-            _fail(path, f"line {line}, column {name}", f"{data[line - 2]:g} looks like degrees, the column is in radians")
+            _fail(
+                path, f"line {line}, column {name}", f"{data[line - 2]:g} looks like degrees, the column is in radians"
+            )
         steps = np.abs(np.diff(data))
         if steps.max() > jump:
             at = int(np.argmax(steps)) + 3
-            _fail(path, f"line {at}, column {name}",
-                  f"jumps by {math.degrees(steps[at - 3]):.1f} deg in one sample, more than a servo can move "
-                  f"({math.degrees(jump):.1f} deg at {SERVO_SPEED_DEG_S:g} deg/s)")
+            _fail(
+                path,
+                f"line {at}, column {name}",
+                f"jumps by {math.degrees(steps[at - 3]):.1f} deg in one sample, more than a servo can move "
+                f"({math.degrees(jump):.1f} deg at {SERVO_SPEED_DEG_S:g} deg/s)",
+            )
         if peak > limit:
             beyond[j] = math.degrees(data[line - 2])
         q[:, j - 1] = data
     rate = col["head_yaw_rate_rad_s"]
     if np.abs(rate).max() > YAW_RATE_HINT_RAD_S:
         line = int(np.argmax(np.abs(rate))) + 2
-        _fail(path, f"line {line}, column head_yaw_rate_rad_s", f"{rate[line - 2]:g} looks like deg/s, the column is in rad/s")
+        _fail(
+            path,
+            f"line {line}, column head_yaw_rate_rad_s",
+            f"{rate[line - 2]:g} looks like deg/s, the column is in rad/s",
+        )
     cam = None
     if camera:
         cam = np.column_stack([col[c] for c in CAMERA_COLUMNS])

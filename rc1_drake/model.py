@@ -85,9 +85,7 @@ def chain_geometry(plant, instance) -> ChainGeometry:
             wheel_yaw.append(yaw)
     bodies = [plant.GetBodyByName(f"module_{k}", instance) for k in range(1, NUM_MODULES + 1)]
     mass = np.array([b.get_mass(context) for b in bodies])
-    izz = np.array(
-        [b.CalcSpatialInertiaInBodyFrame(context).CalcRotationalInertia().get_moments()[2] for b in bodies]
-    )
+    izz = np.array([b.CalcSpatialInertiaInBodyFrame(context).CalcRotationalInertia().get_moments()[2] for b in bodies])
     return ChainGeometry(
         joint_in_parent=np.array(j_parent),
         joint_in_child=np.array(j_child),
@@ -111,4 +109,5 @@ def set_payload(plant, plant_context, module: int, kg: float) -> None:
         extra = kg if k == module else 0.0
         central = base.CalcRotationalInertia()  # about the module's centre, which is its mass centre
         body.SetSpatialInertiaInBodyFrame(
-            plant_context, SpatialInertia.MakeFromCentralInertia(base.get_mass() + extra, base.get_com(), central))
+            plant_context, SpatialInertia.MakeFromCentralInertia(base.get_mass() + extra, base.get_com(), central)
+        )

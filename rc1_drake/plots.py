@@ -182,8 +182,15 @@ def waterfall_figure(waterfall):
         x = np.arange(len(cases)) + (k - (len(waterfall) - 1) / 2) * width
         ax.bar(x, [step["cases"][c]["mean_eq6_error_pct"] for c in cases], width, label=step["model"])
         # The same with the replay's own miss on each trial's motion taken off (diagnose.replay_error).
-        ax.plot(x, [step["cases"][c]["mean_eq6_without_replay_miss_pct"] for c in cases], "_", ms=14, mew=2,
-                color="k", label="replay's own miss taken off" if k == 0 else None)
+        ax.plot(
+            x,
+            [step["cases"][c]["mean_eq6_without_replay_miss_pct"] for c in cases],
+            "_",
+            ms=14,
+            mew=2,
+            color="k",
+            label="replay's own miss taken off" if k == 0 else None,
+        )
     ax.set_xticks(np.arange(len(cases)), cases)
     ax.set_ylabel("mean Eq. 6 error (%)")
     ax.set_title("error waterfall (held-out trials after the start)")
@@ -198,8 +205,11 @@ def candidates_figure(candidates):
     colours = {"accepted": "tab:green", "not significant": "tab:gray", "not detectable here": "lightgray"}
     fig, ax = plt.subplots(figsize=(7, 0.4 * len(candidates) + 1.2))
     y = np.arange(len(candidates))[::-1]
-    ax.barh(y, [100 * c.held_out_reduction for c in candidates],
-            color=[colours.get(c.status, "tab:orange") for c in candidates])
+    ax.barh(
+        y,
+        [100 * c.held_out_reduction for c in candidates],
+        color=[colours.get(c.status, "tab:orange") for c in candidates],
+    )
     ax.set_yticks(y, [f"{c.name} ({c.status})" for c in candidates], fontsize=7)
     ax.axvline(0, color="k", lw=0.5)
     ax.set_xlabel("held-out error reduction (%), linear leave-one-trial-out")

@@ -13,7 +13,6 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
-from typing import Optional
 
 import numpy as np
 from pydrake.systems.analysis import Simulator
@@ -57,12 +56,19 @@ def configure_context(built: RC1Diagram, context, scenario: Scenario, initial=No
     from `initial` if given, else from initial_state(scenario)."""
     built.diagram.SetDefaultContext(context)
     context.SetTime(0.0)
-    apply_effects(built, context, scenario.effects, friction=scenario.friction,
-                  sgn_smoothing_m_s=scenario.numerics.sgn_smoothing_m_s)
+    apply_effects(
+        built,
+        context,
+        scenario.effects,
+        friction=scenario.friction,
+        sgn_smoothing_m_s=scenario.numerics.sgn_smoothing_m_s,
+    )
     built.failure_switch.reset(context, scenario.servo.torque_limit_Nm)
     if built.gait_bias is not None:
         bias = serpenoid_parameters(commanded_gait(scenario.gait, scenario.effects))[3]  # a sensor fault moves it
-        built.gait_bias.get_mutable_source_value(built.gait_bias.GetMyMutableContextFromRoot(context)).SetFromVector(bias)
+        built.gait_bias.get_mutable_source_value(built.gait_bias.GetMyMutableContextFromRoot(context)).SetFromVector(
+            bias
+        )
     plant_context = built.plant.GetMyMutableContextFromRoot(context)
     x0 = initial_state(scenario, built.rc1.geometry) if initial is None else initial
     built.plant.SetPositionsAndVelocities(plant_context, x0)
@@ -85,15 +91,17 @@ class Run:
     wall_time_s: float
     geometry: ChainGeometry  # of the plant that made the run
     # Forward sensitivities d state / d parameter (N, P, 32) for the parameters named (compiled engine only).
-    sensitivity: Optional[np.ndarray] = None
+    sensitivity: np.ndarray | None = None
     sensitivity_names: tuple = ()
 
     def residual_jacobian(self, residual_of, residual) -> np.ndarray:
         """d residual_of(run) / d parameter, one column per sensitivity_names, for a residual linear in the logged
         states (interpolated positions and rates): the residual of the logs moved along each sensitivity, less
         `residual` (residual_of(self))."""
-        columns = [residual_of(dataclasses.replace(self, state=self.state + self.sensitivity[:, p])) - residual
-                   for p in range(len(self.sensitivity_names))]
+        columns = [
+            residual_of(dataclasses.replace(self, state=self.state + self.sensitivity[:, p])) - residual
+            for p in range(len(self.sensitivity_names))
+        ]
         return np.column_stack(columns) if columns else np.zeros((len(residual), 0))
 
     @property
@@ -196,8 +204,15 @@ class Session:
             t = np.append(t, t_stop)
             state = np.vstack([state, plant.GetPositionsAndVelocities(plant_context)])
             torque = np.vstack([torque, built.diagram.GetOutputPort("servo_torque").Eval(context)])
-        return Run(scenario=scenario, t=t, state=state, servo_torque=torque, stop_reason=reason[0],
-                   wall_time_s=wall, geometry=built.rc1.geometry)
+        return Run(
+            scenario=scenario,
+            t=t,
+            state=state,
+            servo_torque=torque,
+            stop_reason=reason[0],
+            wall_time_s=wall,
+            geometry=built.rc1.geometry,
+        )
 
 
 def simulate(*, scenario: Scenario, session: Session | None = None) -> Run:

@@ -19,7 +19,6 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
-from typing import Optional
 
 import numpy as np
 from scipy.integrate import solve_ivp
@@ -43,7 +42,7 @@ class ReferenceRun:
     crossed: bool
     wall_time_s: float
     circled: bool = False  # stopped where the head's yaw had turned by the stop's revolutions
-    z_dot: Optional[np.ndarray] = None  # (N, 16) rates of (x, y, yaw of the head, q_1..q_13)
+    z_dot: np.ndarray | None = None  # (N, 16) rates of (x, y, yaw of the head, q_1..q_13)
 
 
 class PlanarSnake:
@@ -126,8 +125,9 @@ class PlanarSnake:
         return np.einsum("pai,pa->i", jac, forces)
 
 
-def simulate_reference(scenario: Scenario, geometry, *, joint_path=None, rtol=1e-7, atol=1e-9, at_rest="centre",
-                       t_eval=None, toe_rad=0.0) -> ReferenceRun:
+def simulate_reference(
+    scenario: Scenario, geometry, *, joint_path=None, rtol=1e-7, atol=1e-9, at_rest="centre", t_eval=None, toe_rad=0.0
+) -> ReferenceRun:
     """Integrate the scenario with the working joints prescribed; stops at the line or time limit.
 
     The working joints follow the serpenoid of the scenario's gait, or, if joint_path = (t, q) is
@@ -148,6 +148,7 @@ def simulate_reference(scenario: Scenario, geometry, *, joint_path=None, rtol=1e
     c_joint = scenario.friction.c_joint
 
     if joint_path is None:
+
         def prescribed(t):
             arg = omega * t - phase
             return (amp * np.sin(arg) + bias, amp * omega * np.cos(arg), -amp * omega**2 * np.sin(arg))
@@ -184,7 +185,9 @@ def simulate_reference(scenario: Scenario, geometry, *, joint_path=None, rtol=1e
     q0, qd0, _ = prescribed(0.0)
     rel = np.concatenate([[0.0], np.cumsum(q0)])
     reld = np.concatenate([[0.0], np.cumsum(qd0)])
-    z0 = np.concatenate([[scenario.start.x_m, scenario.start.y_m, math.radians(scenario.start.heading_deg) - rel.mean()], q0])
+    z0 = np.concatenate(
+        [[scenario.start.x_m, scenario.start.y_m, math.radians(scenario.start.heading_deg) - rel.mean()], q0]
+    )
     zd0 = np.concatenate([[0.0, 0.0, -reld.mean()], qd0])
     _, centres, joints = snake.frames(z0)
     if at_rest == "centre":
@@ -197,8 +200,10 @@ def simulate_reference(scenario: Scenario, geometry, *, joint_path=None, rtol=1e
     events = []
     line = scenario.stop.line_x_m
     if line is not None:
+
         def crossed(t, y):
             return y[0] - line
+
         crossed.terminal, crossed.direction = True, 1
         events.append(crossed)
     if scenario.stop.revolutions is not None:  # the head's yaw has turned by the revolutions, either way
@@ -206,11 +211,22 @@ def simulate_reference(scenario: Scenario, geometry, *, joint_path=None, rtol=1e
 
         def circled(t, y):
             return abs(y[2] - yaw0) - turn
+
         circled.terminal, circled.direction = True, 1
         events.append(circled)
     start = time.perf_counter()
-    sol = solve_ivp(rhs, (0.0, scenario.stop.time_limit_s), y0, method="LSODA", rtol=rtol, atol=atol,
-                    events=events, dense_output=False, max_step=0.01, t_eval=t_eval)
+    sol = solve_ivp(
+        rhs,
+        (0.0, scenario.stop.time_limit_s),
+        y0,
+        method="LSODA",
+        rtol=rtol,
+        atol=atol,
+        events=events,
+        dense_output=False,
+        max_step=0.01,
+        t_eval=t_eval,
+    )
     wall = time.perf_counter() - start
     if not sol.success:
         raise RuntimeError(f"reference integration failed: {sol.message}")
@@ -222,5 +238,13 @@ def simulate_reference(scenario: Scenario, geometry, *, joint_path=None, rtol=1e
         states = np.vstack([states, sol.y_events[fired[0]][0]])
     motion = [full(t, y)[:2] for t, y in zip(times, states, strict=True)]
     zs, zds = np.array([m[0] for m in motion]), np.array([m[1] for m in motion])
-    return ReferenceRun(t=times, head_xy=zs[:, 0:2], head_yaw=zs[:, 2], q=zs[:, 3:], crossed=crossed,
-                        wall_time_s=wall, z_dot=zds, circled=bool(fired) and not crossed)
+    return ReferenceRun(
+        t=times,
+        head_xy=zs[:, 0:2],
+        head_yaw=zs[:, 2],
+        q=zs[:, 3:],
+        crossed=crossed,
+        wall_time_s=wall,
+        z_dot=zds,
+        circled=bool(fired) and not crossed,
+    )

@@ -51,8 +51,9 @@ class JointReference:
         and GCV's choice moves with neither an offset nor a scale, so it is this one mapped back exactly."""
         if sensors.reads_angles:
             return self
-        return dataclasses.replace(self, q=(self.q - sensors.angle_offsets_rad) / sensors.angle_gains,
-                                   q_dot=self.q_dot / sensors.angle_gains)
+        return dataclasses.replace(
+            self, q=(self.q - sensors.angle_offsets_rad) / sensors.angle_gains, q_dot=self.q_dot / sensors.angle_gains
+        )
 
     @functools.cached_property
     def trajectory(self):
@@ -96,9 +97,16 @@ def replay_scenario(trial: Trial, friction: Friction, effects=None, numerics=Non
     kwargs = {} if effects is None else {"effects": effects}
     numerics = numerics or REPLAY_NUMERICS
     servo = dataclasses.replace(REPLAY_SERVO, lead_s=numerics.time_step_s)
-    return Scenario(gait=trial.gait, servo=servo, friction=friction,
-                    failures=[Failure(joint=j) for j in trial.failed_joints], start=Start(x_m=float(x), y_m=float(y)),
-                    stop=stop, numerics=numerics, **kwargs)
+    return Scenario(
+        gait=trial.gait,
+        servo=servo,
+        friction=friction,
+        failures=[Failure(joint=j) for j in trial.failed_joints],
+        start=Start(x_m=float(x), y_m=float(y)),
+        stop=stop,
+        numerics=numerics,
+        **kwargs,
+    )
 
 
 def replay_initial_state(trial: Trial, reference: JointReference, geometry) -> np.ndarray:
@@ -153,8 +161,11 @@ class Replayer:
         """Replay from the head rates that the trial's first measurements give at this model (start.py) in
         place of the protocol's convention; on the compiled engine (its exact sensitivities), for both."""
         scenario = replay_scenario(self.trial, friction, effects, self.numerics)
-        fitter = self.session if self.session.engine == "compiled" else make_session(
-            scenario, engine="compiled", joint_reference=self.reference)
+        fitter = (
+            self.session
+            if self.session.engine == "compiled"
+            else make_session(scenario, engine="compiled", joint_reference=self.reference)
+        )
         estimate = fit_start(self.trial, fitter, scenario, self.initial)
         self.use_start(estimate.head_rates)
         return estimate

@@ -11,7 +11,6 @@ where to look. Trials are listed worst first.
 
 import dataclasses
 import math
-from typing import Dict, List, Optional
 
 import numpy as np
 
@@ -54,7 +53,7 @@ def correlation(y, x) -> tuple:
     return r, float(2 * student.sf(abs(t), n_eff - 2))
 
 
-def trial_features(trial, run, t) -> Dict[str, np.ndarray]:
+def trial_features(trial, run, t) -> dict[str, np.ndarray]:
     """The features at the trial's sample times t (s from its start), from its replay `run`."""
     states = np.array([np.interp(t, run.t, run.state[:, i]) for i in range(run.state.shape[1])]).T
     yaws = states[:, 2:3] + np.concatenate([np.zeros((len(t), 1)), np.cumsum(states[:, 3:16], axis=1)], axis=1)
@@ -64,8 +63,13 @@ def trial_features(trial, run, t) -> Dict[str, np.ndarray]:
         w = wheel_kinematics(x, run.geometry)
         slip[k] = float(np.mean((np.conj(w.direction) * (w.jacobian @ x[16:])).imag))
     phase = math.radians(trial.gait.frequency_deg_s) * t + math.radians(trial.gait.phase_offset_deg)
-    out = {"heading_sin": np.sin(heading), "heading_cos": np.cos(heading), "lateral_slip": slip,
-           "gait_phase_sin": np.sin(phase), "gait_phase_cos": np.cos(phase)}
+    out = {
+        "heading_sin": np.sin(heading),
+        "heading_cos": np.cos(heading),
+        "lateral_slip": slip,
+        "gait_phase_sin": np.sin(phase),
+        "gait_phase_cos": np.cos(phase),
+    }
     if trial.failed_joints:
         out["failed_joint_angle"] = states[:, 3 + trial.failed_joints[0] - 1]
     return out
@@ -79,35 +83,44 @@ class TrialResiduals:
     yaw_rate_residual_rms_rad_s: float
     yaw_rate_lag1: float  # autocorrelation of the yaw-rate residual at one sample
     ljung_box_p: float  # whiteness of the yaw-rate residual (10 lags): small = structure left
-    correlations: Dict[str, List[float]]  # feature -> [r, p] with the yaw-rate residual
-    position_error_rms_m: Optional[float] = None  # camera path, where a camera saw the head
-    position_error_growth_m_s: Optional[float] = None  # slope of |position error| against time
-    exceeds_2cm_at_s: Optional[float] = None  # when |position error| first exceeds 2 cm
+    correlations: dict[str, list[float]]  # feature -> [r, p] with the yaw-rate residual
+    position_error_rms_m: float | None = None  # camera path, where a camera saw the head
+    position_error_growth_m_s: float | None = None  # slope of |position error| against time
+    exceeds_2cm_at_s: float | None = None  # when |position error| first exceeds 2 cm
 
 
 @dataclasses.dataclass
 class WhereItFails:
-    trials: List[TrialResiduals]  # worst Eq. 6 error first
-    cases: Dict[str, float]  # case -> mean Eq. 6 error, worst first
-    pooled: Dict[str, List[float]]  # feature -> [r, p] over every trial's yaw-rate residual
-    measurement: List[str] = dataclasses.field(default_factory=list)  # what the data do that the model cannot
+    trials: list[TrialResiduals]  # worst Eq. 6 error first
+    cases: dict[str, float]  # case -> mean Eq. 6 error, worst first
+    pooled: dict[str, list[float]]  # feature -> [r, p] over every trial's yaw-rate residual
+    measurement: list[str] = dataclasses.field(default_factory=list)  # what the data do that the model cannot
 
     def to_json(self) -> dict:
-        return {"trials": [dataclasses.asdict(t) for t in self.trials], "cases": self.cases, "pooled": self.pooled,
-                "measurement": self.measurement}
+        return {
+            "trials": [dataclasses.asdict(t) for t in self.trials],
+            "cases": self.cases,
+            "pooled": self.pooled,
+            "measurement": self.measurement,
+        }
 
     def table(self) -> str:
         lines = [f"measurement: {m}" for m in self.measurement]
-        lines += [f"{'trial':<22}{'case':<10}{'Eq.6 %':>8}{'path rms cm':>12}{'grows cm/s':>11}{'>2 cm at s':>11}"
-                 f"{'LB p':>8}  strongest feature"]
+        lines += [
+            f"{'trial':<22}{'case':<10}{'Eq.6 %':>8}{'path rms cm':>12}{'grows cm/s':>11}{'>2 cm at s':>11}"
+            f"{'LB p':>8}  strongest feature"
+        ]
+
         def cm(v, scale=100):
             return "-" if v is None else f"{scale * v:.1f}"
 
         for r in self.trials:
             feature, (rr, p) = max(r.correlations.items(), key=lambda kv: abs(kv[1][0]))
-            lines.append(f"{r.trial_id:<22}{r.case:<10}{r.eq6_error_pct:8.1f}{cm(r.position_error_rms_m):>12}"
-                         f"{cm(r.position_error_growth_m_s):>11}{cm(r.exceeds_2cm_at_s, 1):>11}{r.ljung_box_p:8.3f}"
-                         f"  {feature} r={rr:+.2f} (p={p:.2g})")
+            lines.append(
+                f"{r.trial_id:<22}{r.case:<10}{r.eq6_error_pct:8.1f}{cm(r.position_error_rms_m):>12}"
+                f"{cm(r.position_error_growth_m_s):>11}{cm(r.exceeds_2cm_at_s, 1):>11}{r.ljung_box_p:8.3f}"
+                f"  {feature} r={rr:+.2f} (p={p:.2g})"
+            )
         return "\n".join(lines)
 
 
@@ -123,9 +136,14 @@ def where_it_fails(report, campaign) -> WhereItFails:
         for f in FEATURES:
             pooled_x[f].append(features[f] - features[f].mean() if f in features else np.full(len(t), np.nan))
         row = TrialResiduals(
-            trial_id=result.trial_id, case=result.case, eq6_error_pct=result.eq6_error_pct,
-            yaw_rate_residual_rms_rad_s=float(np.sqrt(np.mean(y**2))), yaw_rate_lag1=lag1(y),
-            ljung_box_p=ljung_box(y)[1], correlations={f: list(correlation(y, x)) for f, x in features.items()})
+            trial_id=result.trial_id,
+            case=result.case,
+            eq6_error_pct=result.eq6_error_pct,
+            yaw_rate_residual_rms_rad_s=float(np.sqrt(np.mean(y**2))),
+            yaw_rate_lag1=lag1(y),
+            ljung_box_p=ljung_box(y)[1],
+            correlations={f: list(correlation(y, x)) for f, x in features.items()},
+        )
         if result.position_residual is not None:
             seen = ~np.isnan(result.position_residual[:, 0])
             error = np.linalg.norm(result.position_residual[seen], axis=1)
@@ -135,7 +153,7 @@ def where_it_fails(report, campaign) -> WhereItFails:
             row.exceeds_2cm_at_s = float(t[seen][over[0]]) if len(over) else None
         rows.append(row)
     rows.sort(key=lambda r: -r.eq6_error_pct)
-    cases: Dict[str, List[float]] = {}
+    cases: dict[str, list[float]] = {}
     for r in rows:
         cases.setdefault(r.case, []).append(r.eq6_error_pct)
     y = np.concatenate(pooled_y)
@@ -145,6 +163,9 @@ def where_it_fails(report, campaign) -> WhereItFails:
         ok = ~np.isnan(x)
         if ok.sum() > 10:
             pooled[f] = list(correlation(y[ok], x[ok]))
-    return WhereItFails(trials=rows, cases=dict(sorted(((c, float(np.mean(v))) for c, v in cases.items()),
-                                                      key=lambda kv: -kv[1])), pooled=pooled,
-                        measurement=limit_warnings([by_id[r.trial_id] for r in report.trials]))
+    return WhereItFails(
+        trials=rows,
+        cases=dict(sorted(((c, float(np.mean(v))) for c, v in cases.items()), key=lambda kv: -kv[1])),
+        pooled=pooled,
+        measurement=limit_warnings([by_id[r.trial_id] for r in report.trials]),
+    )

@@ -6,7 +6,6 @@ parameter bounds). Errors are one line naming the file or source, the key and th
 import dataclasses
 import math
 from pathlib import Path
-from typing import Dict, List, Optional
 
 from pydrake.common.yaml import yaml_load_typed
 
@@ -39,7 +38,7 @@ class ModelFile:
     coefficients at the top level (the older friction file) is read too."""
 
     friction: Friction = dataclasses.field(default_factory=Friction)
-    effects: Dict[str, float] = dataclasses.field(default_factory=dict)
+    effects: dict[str, float] = dataclasses.field(default_factory=dict)
 
 
 def load_model_file(path) -> ModelFile:
@@ -55,24 +54,30 @@ def load_model_file(path) -> ModelFile:
         raise Rc1Error(f"{path}: not valid YAML: {_one_line(e)}") from None
     flat = isinstance(top, dict) and bool(top) and set(top) <= set(FRICTION_NAMES)
     try:
-        model = (ModelFile(friction=yaml_load_typed(schema=Friction, filename=str(path))) if flat
-                 else yaml_load_typed(schema=ModelFile, filename=str(path)))
+        model = (
+            ModelFile(friction=yaml_load_typed(schema=Friction, filename=str(path)))
+            if flat
+            else yaml_load_typed(schema=ModelFile, filename=str(path))
+        )
     except Exception as e:  # noqa: BLE001 - any parse failure is a malformed file, reported in one line
         raise Rc1Error(f"{path}: {_one_line(e) or type(e).__name__}") from None
     validate(Scenario(friction=model.friction, effects=model.effects), where=str(path))
     return model
 
 
-def model_to_yaml(friction: Friction, effects: Optional[Dict[str, float]] = None, *, comment: str = "") -> str:
-    lines = [f"# {comment or 'Model file'}: friction (rc1_drake.config.Friction) and effects (rc1 effects);",
-             "# read with --model-file.", "friction:"]
+def model_to_yaml(friction: Friction, effects: dict[str, float] | None = None, *, comment: str = "") -> str:
+    lines = [
+        f"# {comment or 'Model file'}: friction (rc1_drake.config.Friction) and effects (rc1 effects);",
+        "# read with --model-file.",
+        "friction:",
+    ]
     lines += [f"  {name}: {getattr(friction, name):.6g}" for name in FRICTION_NAMES]
     lines += ["effects:" + ("" if effects else " {}")]
     lines += [f"  {key}: {value:.6g}" for key, value in (effects or {}).items()]
     return "\n".join(lines) + "\n"
 
 
-def list_scenarios(filename=DEFAULT_SCENARIOS) -> List[str]:
+def list_scenarios(filename=DEFAULT_SCENARIOS) -> list[str]:
     import yaml  # Drake depends on PyYAML; only the top-level keys are read here
 
     with open(filename) as f:

@@ -75,8 +75,9 @@ def _add_kinematic_target(builder, rc1, desired_state_port, lead_s: float):
     preview.set_name("kinematic_preview")
     lower = [j.position_lower_limits()[0] for j in rc1.joints]
     upper = [j.position_upper_limits()[0] for j in rc1.joints]
-    limits = builder.AddSystem(Saturation(np.concatenate([lower, np.full(n, -np.inf)]),
-                                          np.concatenate([upper, np.full(n, np.inf)])))
+    limits = builder.AddSystem(
+        Saturation(np.concatenate([lower, np.full(n, -np.inf)]), np.concatenate([upper, np.full(n, np.inf)]))
+    )
     limits.set_name("kinematic_target")
     builder.Connect(desired_state_port, preview.get_input_port())
     builder.Connect(preview.get_output_port(), limits.get_input_port())

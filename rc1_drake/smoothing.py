@@ -27,18 +27,18 @@ def _reinsch(h, y, lam):
     m = n - 2
     # Column i of Q has a[i], b[i], c[i] in rows i, i+1, i+2.
     a = 1.0 / h[:m]
-    c = 1.0 / h[1:m + 1]
+    c = 1.0 / h[1 : m + 1]
     b = -a - c
-    qty = a * y[:m] + b * y[1:m + 1] + c * y[2:]
+    qty = a * y[:m] + b * y[1 : m + 1] + c * y[2:]
     # The bands of Q'Q and of B = R + lam Q'Q: main diagonal, first and second off-diagonals.
     d0 = a * a + b * b + c * c
     d1 = np.zeros(m)
     d2 = np.zeros(m)
-    d1[:m - 1] = b[:m - 1] * a[1:] + c[:m - 1] * b[1:]
-    d2[:m - 2] = c[:m - 2] * a[2:]
-    e0 = (h[:m] + h[1:m + 1]) / 3.0 + lam * d0
+    d1[: m - 1] = b[: m - 1] * a[1:] + c[: m - 1] * b[1:]
+    d2[: m - 2] = c[: m - 2] * a[2:]
+    e0 = (h[:m] + h[1 : m + 1]) / 3.0 + lam * d0
     e1 = np.zeros(m)
-    e1[:m - 1] = h[1:m] / 6.0 + lam * d1[:m - 1]
+    e1[: m - 1] = h[1:m] / 6.0 + lam * d1[: m - 1]
     e2 = lam * d2
     # B = L D L', L unit lower triangular with l1[i] = L[i+1, i], l2[i] = L[i+2, i].
     d = np.empty(m)
@@ -76,7 +76,7 @@ def _reinsch(h, y, lam):
         gamma[i] = s
     residual = np.zeros(n)
     residual[:m] += a * gamma
-    residual[1:m + 1] += b * gamma
+    residual[1 : m + 1] += b * gamma
     residual[2:] += c * gamma
     return d0, d1, d2, d, l1, l2, gamma, residual
 
@@ -109,7 +109,7 @@ def spline_samples(h, y, lam):
     _, _, _, _, _, _, gamma, residual = _reinsch(h, y, lam)
     f = y - lam * residual
     second = np.zeros(n)
-    second[1:n - 1] = gamma
+    second[1 : n - 1] = gamma
     slope = np.empty(n)
     for i in range(n - 1):
         slope[i] = (f[i + 1] - f[i]) / h[i] - h[i] * (2.0 * second[i] + second[i + 1]) / 6.0
@@ -126,8 +126,7 @@ def gcv_lambda(x, y) -> float:
         rss, trace = gcv_terms(h, y, 10.0**log10_lam)
         return n * rss / trace**2
 
-    return float(10.0 ** minimize_scalar(score, bounds=LOG10_LAM_BOUNDS, method="bounded",
-                                         options={"xatol": 1e-4}).x)
+    return float(10.0 ** minimize_scalar(score, bounds=LOG10_LAM_BOUNDS, method="bounded", options={"xatol": 1e-4}).x)
 
 
 def smoothing_spline(x, y):

@@ -41,12 +41,18 @@ def start_residual(trial, run, window: float) -> np.ndarray:
     t = trial.t - trial.t[0]
     inside = t <= min(window, run.t[-1]) + 1e-9
     sensors = sensor_model(run.scenario.effects)
-    parts = [(sensors.imu(t[inside], run.t, run.state[:, 18]) - trial.head_yaw_rate[inside])
-             / RESIDUAL_SIGMAS["yaw_rate_rad_s"]]
+    parts = [
+        (sensors.imu(t[inside], run.t, run.state[:, 18]) - trial.head_yaw_rate[inside])
+        / RESIDUAL_SIGMAS["yaw_rate_rad_s"]
+    ]
     if trial.camera is not None:
         seen = inside & ~np.isnan(trial.camera[:, 0])
-        parts += list(((sensors.camera(t[seen], run.t, run.state[:, 0:2]) - trial.camera[seen, :2])
-                       / RESIDUAL_SIGMAS["camera_m"]).T)
+        parts += list(
+            (
+                (sensors.camera(t[seen], run.t, run.state[:, 0:2]) - trial.camera[seen, :2])
+                / RESIDUAL_SIGMAS["camera_m"]
+            ).T
+        )
     return np.concatenate(parts)
 
 
@@ -79,5 +85,6 @@ def fit_start(trial, session, scenario, x0, *, window: float = START_FIT_S) -> S
         if np.abs(step).max() < START_TOLERANCE:
             break
     errors = np.sqrt(np.diag(np.linalg.pinv(jacobian.T @ jacobian)))
-    return StartEstimate(head_rates=x0[16:19].copy(), standard_errors=errors,
-                         residual_rms=float(np.sqrt(np.mean(r ** 2))), samples=len(r))
+    return StartEstimate(
+        head_rates=x0[16:19].copy(), standard_errors=errors, residual_rms=float(np.sqrt(np.mean(r**2))), samples=len(r)
+    )

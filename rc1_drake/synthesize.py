@@ -10,7 +10,6 @@ import dataclasses
 import json
 import math
 from pathlib import Path
-from typing import List, Optional
 
 import numpy as np
 
@@ -24,10 +23,10 @@ from .measurements import Stop as TrialStop
 
 @dataclasses.dataclass
 class Case:
-    failed_joints: List[int]
+    failed_joints: list[int]
     trials: int
     bias_deg: float = 0.0
-    gait: Optional[Gait] = None  # the commanded gait (its bias replaced by bias_deg); None: the paper's
+    gait: Gait | None = None  # the commanded gait (its bias replaced by bias_deg); None: the paper's
 
 
 @dataclasses.dataclass
@@ -43,8 +42,10 @@ class Noise:
     hand_m: float = 0.01  # the final position, measured by hand
 
     def scaled(self, factor: float) -> "Noise":
-        return dataclasses.replace(self, **{f.name: getattr(self, f.name) * factor for f in dataclasses.fields(self)
-                                           if f.name != "camera_dropout"})
+        return dataclasses.replace(
+            self,
+            **{f.name: getattr(self, f.name) * factor for f in dataclasses.fields(self) if f.name != "camera_dropout"},
+        )
 
 
 @dataclasses.dataclass
@@ -65,8 +66,12 @@ PAPER_DESIGN = [Case([], 5), Case([7], 5), Case([13], 5), Case([7], 5, bias_deg=
 # spread the rolling speeds (mu_long against c_long); failures of joints 7 and 13 at two speeds show
 # c_joint. (Joint-2 failures circle, and their replays drift from the truth even at its coefficients.)
 IDENTIFICATION_DESIGN = [
-    Case([], 1), Case([], 1, gait=Gait(frequency_deg_s=70.0)), Case([], 1, gait=Gait(frequency_deg_s=210.0)),
-    Case([7], 1), Case([7], 1, gait=Gait(frequency_deg_s=210.0)), Case([13], 1),
+    Case([], 1),
+    Case([], 1, gait=Gait(frequency_deg_s=70.0)),
+    Case([], 1, gait=Gait(frequency_deg_s=210.0)),
+    Case([7], 1),
+    Case([7], 1, gait=Gait(frequency_deg_s=210.0)),
+    Case([13], 1),
 ]
 SERVO_SPEED_LIMIT_DEG_S = 140.0  # HiTec HS5645MG (paper section 2; models/rc1.sdf)
 DESIGNS = {"paper": PAPER_DESIGN, "identification": IDENTIFICATION_DESIGN}
@@ -77,9 +82,24 @@ DESIGNS = {"paper": PAPER_DESIGN, "identification": IDENTIFICATION_DESIGN}
 REFERENCE_EFFECTS = ("wheel_toe_deg", *(e.main.key for e in LIBRARY.values() if e.sensor))
 
 
-def synthesize_campaign(folder, *, design=PAPER_DESIGN, friction=None, effects=None, noise=None, variation=None,
-                        seed=0, camera=True, stop=None, sample_period_s=0.01, numerics=None, truth_file=None,
-                        name=None, truth_model="drake", record_after_s=0.0) -> Campaign:
+def synthesize_campaign(
+    folder,
+    *,
+    design=PAPER_DESIGN,
+    friction=None,
+    effects=None,
+    noise=None,
+    variation=None,
+    seed=0,
+    camera=True,
+    stop=None,
+    sample_period_s=0.01,
+    numerics=None,
+    truth_file=None,
+    name=None,
+    truth_model="drake",
+    record_after_s=0.0,
+) -> Campaign:
     """Write a campaign to `folder` and, if `truth_file` is given, what made it. Unset arguments take
     their defaults: the paper's friction, no effect, Noise(), Variation(), Stop(). `effects` maps
     effect parameter keys to values (effects.py).
@@ -91,11 +111,14 @@ def synthesize_campaign(folder, *, design=PAPER_DESIGN, friction=None, effects=N
     if truth_model not in TRUTH_MODELS:
         raise Rc1Error(f"synthesize: truth model must be one of {', '.join(TRUTH_MODELS)}, got {truth_model!r}")
     if truth_model == "reference" and set(effects or {}) - set(REFERENCE_EFFECTS):
-        raise Rc1Error(f"synthesize: the reference truth model can express wheel_toe_deg and the sensor faults "
-                       f"(rc1 effects) only, not {', '.join(sorted(set(effects) - set(REFERENCE_EFFECTS)))}")
+        raise Rc1Error(
+            f"synthesize: the reference truth model can express wheel_toe_deg and the sensor faults "
+            f"(rc1 effects) only, not {', '.join(sorted(set(effects) - set(REFERENCE_EFFECTS)))}"
+        )
     if record_after_s < 0 or abs(record_after_s / sample_period_s - round(record_after_s / sample_period_s)) > 1e-9:
-        raise Rc1Error(f"synthesize: record_after_s must be a non-negative multiple of the sample period, "
-                       f"got {record_after_s}")
+        raise Rc1Error(
+            f"synthesize: record_after_s must be a non-negative multiple of the sample period, got {record_after_s}"
+        )
     friction, effects = friction or Friction(), dict(effects or {})
     noise, variation, stop = noise or Noise(), variation or Variation(), stop or Stop()
     rng = np.random.default_rng(seed)
@@ -106,16 +129,28 @@ def synthesize_campaign(folder, *, design=PAPER_DESIGN, friction=None, effects=N
         _check_within_servos(case)
     for case in design:
         for k in range(case.trials):
-            label = ("j" + "_".join(map(str, case.failed_joints)) if case.failed_joints else "nominal") + (
-                "_bias" if case.bias_deg else "") + (
-                f"_f{case.gait.frequency_deg_s:g}_p{case.gait.phase_step_deg:g}" if case.gait else "")
+            label = (
+                ("j" + "_".join(map(str, case.failed_joints)) if case.failed_joints else "nominal")
+                + ("_bias" if case.bias_deg else "")
+                + (f"_f{case.gait.frequency_deg_s:g}_p{case.gait.phase_step_deg:g}" if case.gait else "")
+            )
             scenario = Scenario(
-                gait=dataclasses.replace(case.gait or Gait(), bias_deg=case.bias_deg,
-                                         phase_offset_deg=float(rng.normal(0, variation.phase_deg))),
-                friction=friction, effects=effects, failures=[Failure(joint=j) for j in case.failed_joints],
-                start=Start(x_m=float(rng.normal(0, variation.position_m)), y_m=float(rng.normal(0, variation.position_m)),
-                            heading_deg=float(rng.normal(0, variation.heading_deg))),
-                stop=stop, numerics=numerics)
+                gait=dataclasses.replace(
+                    case.gait or Gait(),
+                    bias_deg=case.bias_deg,
+                    phase_offset_deg=float(rng.normal(0, variation.phase_deg)),
+                ),
+                friction=friction,
+                effects=effects,
+                failures=[Failure(joint=j) for j in case.failed_joints],
+                start=Start(
+                    x_m=float(rng.normal(0, variation.position_m)),
+                    y_m=float(rng.normal(0, variation.position_m)),
+                    heading_deg=float(rng.normal(0, variation.heading_deg)),
+                ),
+                stop=stop,
+                numerics=numerics,
+            )
             if truth_model == "reference":
                 run, scenario = _reference_run(scenario, record_after_s, sample_period_s)
             else:
@@ -125,11 +160,16 @@ def synthesize_campaign(folder, *, design=PAPER_DESIGN, friction=None, effects=N
             trials.append(trial)
     if truth_file is not None:
         truth = {
-            "campaign": str(name or folder.name), "seed": seed,
-            "friction": dataclasses.asdict(friction), "effects": effects,
-            "noise": dataclasses.asdict(noise), "variation": dataclasses.asdict(variation),
+            "campaign": str(name or folder.name),
+            "seed": seed,
+            "friction": dataclasses.asdict(friction),
+            "effects": effects,
+            "noise": dataclasses.asdict(noise),
+            "variation": dataclasses.asdict(variation),
             "design": [dataclasses.asdict(c) for c in design],
-            "numerics": dataclasses.asdict(numerics), "truth_model": truth_model, "record_after_s": record_after_s,
+            "numerics": dataclasses.asdict(numerics),
+            "truth_model": truth_model,
+            "record_after_s": record_after_s,
         }
         Path(truth_file).write_text(json.dumps(truth, indent=2) + "\n")
     return Campaign(path=folder, trials=trials)
@@ -144,8 +184,9 @@ def _recorded(scenario: Scenario, record_after_s: float) -> Scenario:
 
 
 def _late(scenario: Scenario, record_after_s: float) -> Scenario:
-    return dataclasses.replace(scenario, stop=dataclasses.replace(
-        scenario.stop, time_limit_s=scenario.stop.time_limit_s + record_after_s))
+    return dataclasses.replace(
+        scenario, stop=dataclasses.replace(scenario.stop, time_limit_s=scenario.stop.time_limit_s + record_after_s)
+    )
 
 
 def _drake_run(scenario: Scenario, record_after_s: float, sessions: dict) -> tuple:
@@ -156,8 +197,9 @@ def _drake_run(scenario: Scenario, record_after_s: float, sessions: dict) -> tup
         sessions[key] = make_session(late)
     run = sessions[key].simulate(late)
     keep = run.t >= record_after_s - 1e-9
-    run = dataclasses.replace(run, t=run.t[keep] - record_after_s, state=run.state[keep],
-                              servo_torque=run.servo_torque[keep])
+    run = dataclasses.replace(
+        run, t=run.t[keep] - record_after_s, state=run.state[keep], servo_torque=run.servo_torque[keep]
+    )
     return run, _recorded(scenario, record_after_s)
 
 
@@ -173,19 +215,26 @@ def _reference_run(scenario: Scenario, record_after_s: float, period: float) -> 
     end = late.stop.time_limit_s
     grid = record_after_s + np.arange(int(math.floor((end - record_after_s) / period + 1e-9)) + 1) * period
     geometry = plant_numbers().geometry
-    ref = simulate_reference(late, geometry, at_rest="head", t_eval=grid,
-                             toe_rad=math.radians(scenario.effects.get("wheel_toe_deg", 0.0)))
+    ref = simulate_reference(
+        late, geometry, at_rest="head", t_eval=grid, toe_rad=math.radians(scenario.effects.get("wheel_toe_deg", 0.0))
+    )
     keep = ref.t >= record_after_s - 1e-9
     z = np.column_stack([ref.head_xy, ref.head_yaw, ref.q])
     state = np.hstack([z, ref.z_dot])[keep]
     reason = "crossed" if ref.crossed else "circling" if ref.circled else "timed_out"
-    run = Run(scenario=scenario, t=ref.t[keep] - record_after_s, state=state,
-              servo_torque=np.zeros((len(state), NUM_JOINTS)), stop_reason=reason, wall_time_s=ref.wall_time_s,
-              geometry=geometry)
+    run = Run(
+        scenario=scenario,
+        t=ref.t[keep] - record_after_s,
+        state=state,
+        servo_torque=np.zeros((len(state), NUM_JOINTS)),
+        stop_reason=reason,
+        wall_time_s=ref.wall_time_s,
+        geometry=geometry,
+    )
     return run, _recorded(scenario, record_after_s)
 
 
-def noise_free_twin(trial: Trial, *, friction: Friction, effects=None, head_at: Optional[float] = None) -> Trial:
+def noise_free_twin(trial: Trial, *, friction: Friction, effects=None, head_at: float | None = None) -> Trial:
     """`trial` as the model (friction, effects) makes it with no sensor noise: the trial's gait, failures,
     start pose and sample times, driven by the servos for the trial's whole duration (whatever its stop
     rule, so that the samples line up with the trial's), with a camera. Replaying the twin shows what the
@@ -199,18 +248,23 @@ def noise_free_twin(trial: Trial, *, friction: Friction, effects=None, head_at: 
     period = round(float(np.median(np.diff(trial.t))), 9)  # exact: a log sample must not slip a step
     q0, _ = serpenoid(0.0, commanded_gait(trial.gait, effects))
     x, y, head_yaw = (float(v) for v in trial.initial_head_pose)
-    scenario = Scenario(gait=trial.gait, friction=friction, effects=effects,
-                        failures=[Failure(joint=j) for j in trial.failed_joints],
-                        start=Start(x_m=x, y_m=y, heading_deg=math.degrees(head_yaw + module_yaws(0.0, q0).mean())),
-                        stop=Stop(line_x_m=None, revolutions=None, time_limit_s=end),
-                        numerics=Numerics(log_period_s=period))
+    scenario = Scenario(
+        gait=trial.gait,
+        friction=friction,
+        effects=effects,
+        failures=[Failure(joint=j) for j in trial.failed_joints],
+        start=Start(x_m=x, y_m=y, heading_deg=math.degrees(head_yaw + module_yaws(0.0, q0).mean())),
+        stop=Stop(line_x_m=None, revolutions=None, time_limit_s=end),
+        numerics=Numerics(log_period_s=period),
+    )
     run = make_session(scenario).simulate(scenario)
     silent = dataclasses.replace(Noise().scaled(0.0), camera_dropout=0.0)
     twin = _measure(run, scenario, trial.trial_id, silent, np.random.default_rng(0), True, period)
     twin.initial_head_rates = run.state[0, 16:19].copy()  # its start, known exactly
     if head_at is not None:  # the head itself, not what a camera with a fault would show of it
-        twin = dataclasses.replace(twin, final_head_xy=np.array([np.interp(head_at, run.t, run.head_xy[:, i])
-                                                                 for i in (0, 1)]))
+        twin = dataclasses.replace(
+            twin, final_head_xy=np.array([np.interp(head_at, run.t, run.head_xy[:, i]) for i in (0, 1)])
+        )
     return dataclasses.replace(twin, notes=f"noise-free twin of {trial.trial_id}")
 
 
@@ -221,8 +275,10 @@ def _check_within_servos(case: Case) -> None:
     amp, omega, _, _ = serpenoid_parameters(case.gait or Gait())
     peak = math.degrees(float(np.max(np.abs(amp) * omega)))
     if peak > SERVO_SPEED_LIMIT_DEG_S + 1e-9:
-        raise Rc1Error(f"synthesize: case {case}: the gait needs {peak:.0f} deg/s of joint speed; RC1's servos "
-                       f"reach {SERVO_SPEED_LIMIT_DEG_S:.0f} deg/s")
+        raise Rc1Error(
+            f"synthesize: case {case}: the gait needs {peak:.0f} deg/s of joint speed; RC1's servos "
+            f"reach {SERVO_SPEED_LIMIT_DEG_S:.0f} deg/s"
+        )
 
 
 def _measure(run, scenario, trial_id, noise: Noise, rng, camera, period) -> Trial:
@@ -234,13 +290,20 @@ def _measure(run, scenario, trial_id, noise: Noise, rng, camera, period) -> Tria
     q = sensors.potentiometers(run.q[on_grid]) + rng.normal(0, math.radians(noise.potentiometer_deg), (n, 13))
     for f in scenario.failures:
         q[:, f.joint - 1] = np.nan
-    rate = (sensors.imu(t, run.t, run.head_yaw_rate) + rng.normal(0, noise.imu_bias_rad_s)
-            + rng.normal(0, noise.imu_rad_s, n))
+    rate = (
+        sensors.imu(t, run.t, run.head_yaw_rate)
+        + rng.normal(0, noise.imu_bias_rad_s)
+        + rng.normal(0, noise.imu_rad_s, n)
+    )
     cam = None
     if camera:
         pose = sensors.camera(t, run.t, run.state[:, :3])
-        cam = np.column_stack([pose[:, :2] + rng.normal(0, noise.camera_m, (n, 2)),
-                               pose[:, 2] + rng.normal(0, math.radians(noise.camera_yaw_deg), n)])
+        cam = np.column_stack(
+            [
+                pose[:, :2] + rng.normal(0, noise.camera_m, (n, 2)),
+                pose[:, 2] + rng.normal(0, math.radians(noise.camera_yaw_deg), n),
+            ]
+        )
         cam[rng.random(n) < noise.camera_dropout] = np.nan
     if run.stop_reason == "crossed":
         stop = TrialStop("line", scenario.stop.line_x_m)
@@ -249,10 +312,15 @@ def _measure(run, scenario, trial_id, noise: Noise, rng, camera, period) -> Tria
     else:
         stop = TrialStop("time", scenario.stop.time_limit_s)
     return Trial(
-        trial_id=trial_id, failed_joints=scenario.failed_joints,
-        gait=dataclasses.replace(scenario.gait, joints=[]), stop=stop,
+        trial_id=trial_id,
+        failed_joints=scenario.failed_joints,
+        gait=dataclasses.replace(scenario.gait, joints=[]),
+        stop=stop,
         initial_head_pose=run.state[0, :3].copy(),
         final_head_xy=run.head_xy[-1] + rng.normal(0, noise.hand_m, 2),
-        t=t, q=q, head_yaw_rate=rate, camera=cam,
+        t=t,
+        q=q,
+        head_yaw_rate=rate,
+        camera=cam,
         notes="synthetic (rc1 synthesize)",
     )

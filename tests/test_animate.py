@@ -7,13 +7,12 @@ import subprocess
 
 import numpy as np
 import pytest
+from conftest import with_stop
 from matplotlib.image import imread
 
 from rc1_drake.animate import FRAMES_PER_SECOND, recorded_frames, write_animation
 from rc1_drake.cli import main
 from rc1_drake.kinematics import module_positions, module_yaws
-
-from conftest import with_stop
 
 
 def test_the_html_animation_replays_the_runs_motion(tmp_path, simulate_cached, joint7_scenario):
@@ -48,15 +47,30 @@ def _screenshot(html, png, size=(1280, 720)) -> np.ndarray:
         if os.environ.get("CI"):
             pytest.fail("chromium is missing: scripts/setup.sh installs Debian's")
         pytest.skip("no chromium here (scripts/setup.sh installs Debian's)")
-    subprocess.run([chromium, "--headless", "--no-sandbox", "--disable-gpu", "--use-angle=swiftshader",
-                    "--enable-unsafe-swiftshader", f"--window-size={size[0]},{size[1]}", "--hide-scrollbars",
-                    "--virtual-time-budget=3000", f"--screenshot={png}", html.resolve().as_uri()],
-                   check=True, capture_output=True, timeout=120)
+    subprocess.run(
+        [
+            chromium,
+            "--headless",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--use-angle=swiftshader",
+            "--enable-unsafe-swiftshader",
+            f"--window-size={size[0]},{size[1]}",
+            "--hide-scrollbars",
+            "--virtual-time-budget=3000",
+            f"--screenshot={png}",
+            html.resolve().as_uri(),
+        ],
+        check=True,
+        capture_output=True,
+        timeout=120,
+    )
     return imread(png)[..., :3]
 
 
-def test_the_animation_opens_on_the_robot_seen_from_above_with_the_line_in_view(tmp_path, simulate_cached,
-                                                                                joint7_scenario):
+def test_the_animation_opens_on_the_robot_seen_from_above_with_the_line_in_view(
+    tmp_path, simulate_cached, joint7_scenario
+):
     # Meshcat's default camera showed the robot low and far: 0.2% of the view, 16% of its width (measured).
     run = simulate_cached(joint7_scenario)
     image = _screenshot(write_animation(run, tmp_path / "j7.html"), tmp_path / "j7.png")

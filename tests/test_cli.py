@@ -55,13 +55,23 @@ def test_bad_options_are_one_line_errors(argv, expected, capsys):
 
 
 def test_console_entry_point_reports_errors_without_traceback():
-    proc = subprocess.run([sys.executable, "-m", "rc1_drake.cli", "run", "--failed-joint", "0"],
-                          capture_output=True, text=True)
+    proc = subprocess.run(
+        [sys.executable, "-m", "rc1_drake.cli", "run", "--failed-joint", "0"], capture_output=True, text=True
+    )
     assert proc.returncode == 2 and proc.stderr.count("\n") == 1 and "joint 0 does not exist" in proc.stderr
 
 
-@pytest.mark.parametrize("command, option", [("diagnose", "--json"), ("diagnose", "--plots"), ("identify", "--out"),
-                                             ("compare", "--json"), ("run", "--json"), ("sweep", "--out")])
+@pytest.mark.parametrize(
+    "command, option",
+    [
+        ("diagnose", "--json"),
+        ("diagnose", "--plots"),
+        ("identify", "--out"),
+        ("compare", "--json"),
+        ("run", "--json"),
+        ("sweep", "--out"),
+    ],
+)
 def test_an_output_that_cannot_be_written_is_refused_before_any_work(tmp_path, capsys, command, option):
     blocker = tmp_path / "a_file"
     blocker.write_text("")

@@ -5,14 +5,13 @@ import json
 
 import numpy as np
 import pytest
+from conftest import first_seconds, trial_samples
 
 from rc1_drake.cli import main
 from rc1_drake.compare import compare_campaign, fit_percent, score_trial, simulator_error
 from rc1_drake.config import Stop
 from rc1_drake.measurements import load_campaign
 from rc1_drake.synthesize import Case, synthesize_campaign
-
-from conftest import first_seconds, trial_samples
 
 DESIGN = [Case([], 2), Case([7], 1)]
 SHORT = Stop(line_x_m=None, revolutions=None, time_limit_s=5.0)  # short trials keep the suite fast
@@ -63,8 +62,10 @@ def test_hidden_effect_shows_as_a_larger_error(clean, hidden):
 def test_compare_command_writes_table_json_and_plots(clean, tmp_path, capsys):
     campaign, _ = clean
     out = tmp_path / "report.json"
-    assert main(["compare", str(campaign.path), "--json", str(out), "--plots", str(tmp_path / "plots"),
-                 "--workers", "2"]) == 0
+    assert (
+        main(["compare", str(campaign.path), "--json", str(out), "--plots", str(tmp_path / "plots"), "--workers", "2"])
+        == 0
+    )
     printed = capsys.readouterr().out
     assert "Failure joint" in printed and "J7" in printed
     data = json.loads(out.read_text())
@@ -72,8 +73,14 @@ def test_compare_command_writes_table_json_and_plots(clean, tmp_path, capsys):
     assert {t["trial_id"] for t in data["trials"]} == {t.trial_id for t in campaign.trials}
     assert data["cases"]["none"]["mean_eq6_error_pct"] >= 0
     pngs = sorted(p.name for p in (tmp_path / "plots").glob("*.png"))
-    assert pngs == ["paths_J7.png", "paths_none.png", "residuals_J7.png", "residuals_none.png",
-                    "yaw_rate_J7.png", "yaw_rate_none.png"]
+    assert pngs == [
+        "paths_J7.png",
+        "paths_none.png",
+        "residuals_J7.png",
+        "residuals_none.png",
+        "yaw_rate_J7.png",
+        "yaw_rate_none.png",
+    ]
     assert all((tmp_path / "plots" / p).stat().st_size > 10_000 for p in pngs)
 
 
@@ -90,8 +97,14 @@ def test_a_replay_reaches_the_line_its_data_ended_just_before(tmp_path):
     from rc1_drake.replay import EVENT_GRACE_SAMPLES, Replayer
     from rc1_drake.synthesize import Noise, Variation
 
-    synthesize_campaign(tmp_path, design=[Case([], 1)], truth_model="reference", noise=Noise().scaled(0.0),
-                        variation=Variation(0.0, 0.0, 0.0), stop=Stop(line_x_m=1.0, revolutions=None, time_limit_s=6.0))
+    synthesize_campaign(
+        tmp_path,
+        design=[Case([], 1)],
+        truth_model="reference",
+        noise=Noise().scaled(0.0),
+        variation=Variation(0.0, 0.0, 0.0),
+        stop=Stop(line_x_m=1.0, revolutions=None, time_limit_s=6.0),
+    )
     (trial,) = load_campaign(tmp_path).trials
     assert trial.stop.type == "line"
     trial = trial_samples(trial, slice(0, len(trial.t) - 2))  # the line is now two samples past the data
@@ -117,9 +130,15 @@ def test_a_trial_that_gives_its_start_rates_replays_from_them(tmp_path):
     from rc1_drake.synthesize import Noise, Variation
 
     silent = dataclasses.replace(Noise().scaled(0.0), camera_dropout=0.0)
-    synthesize_campaign(tmp_path, design=[Case([], 1)], truth_model="reference", noise=silent,
-                        variation=Variation(0.0, 0.0, 0.0), record_after_s=1.0,
-                        stop=Stop(line_x_m=None, revolutions=None, time_limit_s=3.0))
+    synthesize_campaign(
+        tmp_path,
+        design=[Case([], 1)],
+        truth_model="reference",
+        noise=silent,
+        variation=Variation(0.0, 0.0, 0.0),
+        record_after_s=1.0,
+        stop=Stop(line_x_m=None, revolutions=None, time_limit_s=3.0),
+    )
     (trial,) = load_campaign(tmp_path).trials
     dt = trial.t[1] - trial.t[0]
     vx, vy = (-3 * trial.camera[0, :2] + 4 * trial.camera[1, :2] - trial.camera[2, :2]) / (2 * dt)
@@ -152,18 +171,25 @@ def test_a_trial_recorded_in_motion_replays_closer_from_its_fitted_start(tmp_pat
     """Made by the independent model (reference.py) and recorded 1 s after the robot started: the protocol's
     start (centre of mass at rest) is wrong there, the start fitted to the first 0.5 s of data is not."""
     from rc1_drake.config import Friction
-    from rc1_drake.sysid.parameters import PAPER_MANUAL
     from rc1_drake.replay import fit_starts
     from rc1_drake.synthesize import Noise
+    from rc1_drake.sysid.parameters import PAPER_MANUAL
 
     silent = Noise().scaled(0.0)
-    synthesize_campaign(tmp_path / "late", design=[Case([], 2), Case([13], 1), Case([7], 1)], seed=6, noise=silent,
-                        truth_model="reference", record_after_s=1.0, stop=SHORT)
+    synthesize_campaign(
+        tmp_path / "late",
+        design=[Case([], 2), Case([13], 1), Case([7], 1)],
+        seed=6,
+        noise=silent,
+        truth_model="reference",
+        record_after_s=1.0,
+        stop=SHORT,
+    )
     campaign = load_campaign(tmp_path / "late")
     rest, fit = (compare_campaign(campaign, workers=2, start=start) for start in ("rest", "fit"))
     # measured (seeds 6-8): 1.3-1.4% from rest, 0.5% fitted, every trial closer
     assert fit.mean_eq6_error_pct < 0.6 * rest.mean_eq6_error_pct
-    assert all(f.eq6_error_pct < r.eq6_error_pct for f, r in zip(fit.trials, rest.trials))
+    assert all(f.eq6_error_pct < r.eq6_error_pct for f, r in zip(fit.trials, rest.trials, strict=True))
     with pytest.raises(ValueError, match="start must be one of"):
         compare_campaign(campaign, start="moving")
     # Fitted once and carried by the trials (as `rc1 identify --start-rates fit` does, at its start model), the
@@ -171,8 +197,23 @@ def test_a_trial_recorded_in_motion_replays_closer_from_its_fitted_start(tmp_pat
     carried = compare_campaign(fit_starts(campaign, friction=Friction(), workers=2), workers=2)
     assert carried.mean_eq6_error_pct == pytest.approx(fit.mean_eq6_error_pct, rel=1e-9)
     out = tmp_path / "identify.json"
-    assert main(["identify", str(tmp_path / "late"), "--method", "equation-error", "--start-rates", "fit",
-                 "--json", str(out), "--workers", "2"]) == 0
+    assert (
+        main(
+            [
+                "identify",
+                str(tmp_path / "late"),
+                "--method",
+                "equation-error",
+                "--start-rates",
+                "fit",
+                "--json",
+                str(out),
+                "--workers",
+                "2",
+            ]
+        )
+        == 0
+    )
     starts = json.loads(out.read_text())["starts"]
     for trial in fit_starts(campaign, friction=PAPER_MANUAL, workers=2).trials:
         assert list(starts[trial.trial_id].values()) == pytest.approx(trial.initial_head_rates, abs=1e-12)
@@ -185,8 +226,13 @@ def test_the_start_fit_takes_only_steps_that_lower_its_misfit(tmp_path):
     from rc1_drake.config import Friction
     from rc1_drake.replay import Replayer
 
-    synthesize_campaign(tmp_path, design=[Case([], 1)], seed=6, effects={"wheel_toe_deg": 2.0},
-                        stop=Stop(line_x_m=None, revolutions=None, time_limit_s=3.0))
+    synthesize_campaign(
+        tmp_path,
+        design=[Case([], 1)],
+        seed=6,
+        effects={"wheel_toe_deg": 2.0},
+        stop=Stop(line_x_m=None, revolutions=None, time_limit_s=3.0),
+    )
     (trial,) = load_campaign(tmp_path).trials
     replayer = Replayer(trial, engine="compiled")
     estimate = replayer.fit_start(Friction())
@@ -198,8 +244,15 @@ def test_the_start_fit_takes_only_steps_that_lower_its_misfit(tmp_path):
 def test_campaigns_by_another_model_replay_at_20_to_500_hz_with_or_without_a_camera(tmp_path, period_s, camera):
     """reference.py's campaigns (kinematic joints, the head at rest at its start) sampled at 20 Hz with no camera
     and at 500 Hz: the replay follows their angles and ends where they did (measured, 4 trials: 1.9% and 1.1%)."""
-    synthesize_campaign(tmp_path / "foreign", design=[Case([], 1), Case([7], 1)], seed=4, truth_model="reference",
-                        sample_period_s=period_s, camera=camera, stop=SHORT)
+    synthesize_campaign(
+        tmp_path / "foreign",
+        design=[Case([], 1), Case([7], 1)],
+        seed=4,
+        truth_model="reference",
+        sample_period_s=period_s,
+        camera=camera,
+        stop=SHORT,
+    )
     campaign = load_campaign(tmp_path / "foreign")
     assert all((t.camera is not None) == camera for t in campaign.trials)
     report = compare_campaign(campaign, workers=1)
@@ -223,8 +276,12 @@ def test_a_replays_joints_are_kinematic_whatever_torque_that_takes(engine):
     assert np.abs(run.servo_torque).max() > 1.19 + 0.1
     numbers = plant_numbers()
     reference = np.clip(replayer.reference.q[:-1], numbers.lower_limit, numbers.upper_limit)  # the target's clip
-    miss = np.degrees([np.interp(replayer.reference.t[:-1], run.t, run.q[:, j]) - reference[:, j]
-                       for j in (j - 1 for j in trial.working_joints)])
+    miss = np.degrees(
+        [
+            np.interp(replayer.reference.t[:-1], run.t, run.q[:, j]) - reference[:, j]
+            for j in (j - 1 for j in trial.working_joints)
+        ]
+    )
     # The failed joint's limit stop is solved after the servos within a step: when it strikes, the kinematic
     # joints give for that one step (0.14 deg here), and are back on the reference at the next.
     assert np.sqrt(np.mean(miss**2)) < 0.01 and np.abs(miss).max() < 0.25

@@ -20,15 +20,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rc1_drake.diagnose import THRESHOLDS, diagnose, verdict as verdicts
-from rc1_drake.diagnose.coordinates import Coordinate, START, effect_coordinates, friction_coordinates, model_at
+from rc1_drake.config import FRICTION_NAMES, Z95, Friction, Gait, Stop
+from rc1_drake.diagnose import THRESHOLDS, diagnose
+from rc1_drake.diagnose import verdict as verdicts
+from rc1_drake.diagnose.coordinates import START, Coordinate, effect_coordinates, friction_coordinates, model_at
 from rc1_drake.diagnose.decide import decide
 from rc1_drake.diagnose.fit import bounded_least_squares, fit
 from rc1_drake.diagnose.linearize import Linearization, trial_weights
 from rc1_drake.diagnose.replays import evaluate, replay_error
 from rc1_drake.diagnose.report import CandidateResult, HeldOutScore, Round
 from rc1_drake.diagnose.significance import Misfit, final_misfit, misfit, subspace_cosine, wald_p
-from rc1_drake.config import FRICTION_NAMES, Friction, Gait, Stop, Z95
 from rc1_drake.effects import LIBRARY, Effect, EffectParameter, register
 from rc1_drake.measurements import Trial, load_campaign
 from rc1_drake.synthesize import Case, Noise, noise_free_twin, synthesize_campaign
@@ -50,8 +51,10 @@ def test_ground_slope_coordinates_round_trip():
 def test_the_tilt_is_searched_within_a_lab_floor_unless_the_model_has_a_ramp():
     level = {c.name: (c.lower, c.upper) for c in effect_coordinates("ground_slope", {})}
     assert level == {"ground_slope_x_deg": (-5.0, 5.0), "ground_slope_y_deg": (-5.0, 5.0)}
-    ramp = {c.name: (c.value, c.lower, c.upper) for c in effect_coordinates(
-        "ground_slope", {"ground_slope_deg": 8.0, "ground_slope_direction_deg": 180.0})}
+    ramp = {
+        c.name: (c.value, c.lower, c.upper)
+        for c in effect_coordinates("ground_slope", {"ground_slope_deg": 8.0, "ground_slope_direction_deg": 180.0})
+    }
     assert ramp["ground_slope_x_deg"] == pytest.approx((-8.0, -8.0, 5.0))  # the known ramp stays inside the search
     assert ramp["ground_slope_y_deg"][1:] == (-5.0, 5.0)
 
@@ -61,7 +64,9 @@ def test_model_at_writes_friction_and_effects_through_their_coordinates():
     friction, effects = model_at(Friction(), {"wheel_toe_deg": 1.0}, coords, [0.1, 2.0, 0.0, -3.0])
     assert (friction.c_joint, friction.mu_lat, friction.mu_long) == (0.1, 2.0, Friction().mu_long)
     assert effects["wheel_toe_deg"] == 1.0  # the model's other effects stay
-    assert effects["ground_slope_deg"] == pytest.approx(3.0) and effects["ground_slope_direction_deg"] == pytest.approx(-90)
+    assert effects["ground_slope_deg"] == pytest.approx(3.0) and effects["ground_slope_direction_deg"] == pytest.approx(
+        -90
+    )
 
 
 def test_bounded_least_squares_matches_lstsq_and_respects_bounds():
@@ -81,16 +86,35 @@ def test_bounded_least_squares_matches_lstsq_and_respects_bounds():
 def _linearization(columns, r0, noise_sd=0.0, trials=4):
     """A hand-built Linearization of `trials` trials of 12 residuals each: two coordinates."""
     kinds = ["none", "J7"] * trials
-    fakes = [dataclasses.replace(_FAKE_TRIAL, trial_id=f"t{k}", failed_joints=[] if kinds[k] == "none" else [7])
-             for k in range(trials)]
+    fakes = [
+        dataclasses.replace(_FAKE_TRIAL, trial_id=f"t{k}", failed_joints=[] if kinds[k] == "none" else [7])
+        for k in range(trials)
+    ]
     coords = [Coordinate("a", "friction", 0.0, -5, 5, 0.1), Coordinate("b", "effect", 0.0, -5, 5, 1.0)]
-    return Linearization(trials=fakes, friction=Friction(), effects={}, coordinates=coords, r0=r0,
-                            eq6=[0.0] * trials, yaw_fit=[0.0] * trials, columns=columns,
-                            noise=[np.eye(12) * noise_sd**2 for _ in range(trials)])
+    return Linearization(
+        trials=fakes,
+        friction=Friction(),
+        effects={},
+        coordinates=coords,
+        r0=r0,
+        eq6=[0.0] * trials,
+        yaw_fit=[0.0] * trials,
+        columns=columns,
+        noise=[np.eye(12) * noise_sd**2 for _ in range(trials)],
+    )
 
 
-_FAKE_TRIAL = Trial(trial_id="t", failed_joints=[], gait=Gait(), stop=None, initial_head_pose=np.zeros(3),
-                    final_head_xy=np.ones(2), t=np.zeros(2), q=np.zeros((2, 13)), head_yaw_rate=np.zeros(2))
+_FAKE_TRIAL = Trial(
+    trial_id="t",
+    failed_joints=[],
+    gait=Gait(),
+    stop=None,
+    initial_head_pose=np.zeros(3),
+    final_head_xy=np.ones(2),
+    t=np.zeros(2),
+    q=np.zeros((2, 13)),
+    head_yaw_rate=np.zeros(2),
+)
 
 
 def test_fit_recovers_a_linear_truth_and_its_held_out_predictions_are_exact():
@@ -110,10 +134,12 @@ def test_a_trials_start_is_fitted_to_its_start_rows_and_the_physics_to_all_rows(
     like) leaves that trial's start where its start rows put it, as the start's definition says."""
     rng = np.random.default_rng(3)
     n_trials, rows, start_rows = 4, 30, 20
-    lin = _linearization({"a": list(rng.normal(size=(n_trials, 12))), "b": list(rng.normal(size=(n_trials, 12)))},
-                         [np.zeros(12)] * n_trials, trials=n_trials)
-    starts = [Coordinate(f"t{k}:{i}", START, 0.0, -1.0, 1.0, 1.0, (k, i)) for k in range(n_trials)
-              for i in range(3)]
+    lin = _linearization(
+        {"a": list(rng.normal(size=(n_trials, 12))), "b": list(rng.normal(size=(n_trials, 12)))},
+        [np.zeros(12)] * n_trials,
+        trials=n_trials,
+    )
+    starts = [Coordinate(f"t{k}:{i}", START, 0.0, -1.0, 1.0, 1.0, (k, i)) for k in range(n_trials) for i in range(3)]
     coords = [lin.coordinates[0], *starts]
 
     def column(c, k, size):  # a start moves its own trial only
@@ -127,8 +153,15 @@ def test_a_trials_start_is_fitted_to_its_start_rows_and_the_physics_to_all_rows(
     def at_truth(cols):
         return [-np.column_stack([cols[n][k] for n in names]) @ truth for k in range(n_trials)]
 
-    lin = dataclasses.replace(lin, coordinates=coords, columns=columns, r0=at_truth(columns), w0=at_truth(wcolumns),
-                              wcolumns=wcolumns, noise=[np.zeros((rows, rows))] * n_trials)
+    lin = dataclasses.replace(
+        lin,
+        coordinates=coords,
+        columns=columns,
+        r0=at_truth(columns),
+        w0=at_truth(wcolumns),
+        wcolumns=wcolumns,
+        noise=[np.zeros((rows, rows))] * n_trials,
+    )
     fitted = fit(lin, names)
     assert fitted.values == pytest.approx(truth, abs=1e-9)
     assert all(np.abs(h).max() < 1e-9 for h in fitted.held_out)
@@ -155,8 +188,9 @@ def test_final_position_misfit_is_uniform_under_the_noise_and_small_beyond_it():
     ps = []
     for _ in range(200):
         r0 = [rng.normal(size=12) * math.sqrt(1.0 + 0.5**2) for _ in range(4)]
-        ps.append(final_misfit(_linearization({"a": [np.zeros(12)] * 4, "b": [np.zeros(12)] * 4}, r0,
-                                                 noise_sd=0.5), r0, 0)[2])
+        ps.append(
+            final_misfit(_linearization({"a": [np.zeros(12)] * 4, "b": [np.zeros(12)] * 4}, r0, noise_sd=0.5), r0, 0)[2]
+        )
     assert 0.35 < np.mean(ps) < 0.65 and np.mean(np.array(ps) < 0.05) < 0.12  # uniform: mean 0.5, 5% below 0.05
     big = [rng.normal(size=12) * 4 for _ in range(4)]
     assert final_misfit(_linearization({"a": [np.zeros(12)] * 4, "b": [np.zeros(12)] * 4}, big), big, 0)[2] < 1e-3
@@ -192,28 +226,51 @@ def test_a_few_outlying_trials_are_named_and_the_rest_tested_without_them():
 
 def _checked(name, after, before=100.0):
     """A candidate checked by simulation: held-out sum of squares `before` -> `after`."""
-    return CandidateResult(name=name, parameters={}, coordinates={}, interval95={}, wald_p=1e-5,
-                              held_out_before=1.0, held_out_after=1.0, held_out_reduction=0.0, aic_delta=-10.0,
-                              score=0.0, status="candidate",
-                              simulated={"held_out_sum_of_squares_before": before,
-                                         "held_out_sum_of_squares_after": after,
-                                         "held_out_reduction": 1.0 - after / before})
+    return CandidateResult(
+        name=name,
+        parameters={},
+        coordinates={},
+        interval95={},
+        wald_p=1e-5,
+        held_out_before=1.0,
+        held_out_after=1.0,
+        held_out_reduction=0.0,
+        aic_delta=-10.0,
+        score=0.0,
+        status="candidate",
+        simulated={
+            "held_out_sum_of_squares_before": before,
+            "held_out_sum_of_squares_after": after,
+            "held_out_reduction": 1.0 - after / before,
+        },
+    )
 
 
 def _round(candidates, **decision):
-    baseline = HeldOutScore(label="today's model", effects={}, sum_of_squares=100.0, eq6_pct={}, yaw_fit_pct={},
-                               eq6_without_miss_pct={})
-    return Round(friction=Friction(), effects={}, baseline=baseline, candidates=candidates,
-                    accepted=decision.get("accepted"), misfit_p=0.5, ambiguous=decision.get("ambiguous", []),
-                    partial=decision.get("partial"))
+    baseline = HeldOutScore(
+        label="today's model", effects={}, sum_of_squares=100.0, eq6_pct={}, yaw_fit_pct={}, eq6_without_miss_pct={}
+    )
+    return Round(
+        friction=Friction(),
+        effects={},
+        baseline=baseline,
+        candidates=candidates,
+        accepted=decision.get("accepted"),
+        misfit_p=0.5,
+        ambiguous=decision.get("ambiguous", []),
+        partial=decision.get("partial"),
+    )
 
 
-@pytest.mark.parametrize("afters, decision", [
-    ((30.0, 80.0), ("a", [], None)),  # 70% and clearly ahead of the runner-up: accepted
-    ((30.0, 40.0), (None, ["a", "b"], None)),  # a runner-up within 1.5x: these trials cannot tell them apart
-    ((60.0, 95.0), (None, [], "a")),  # significant and confirmed, but less than half: explains part only
-    ((95.0, 120.0), (None, [], None)),  # under 10% (and worse): no gain
-])
+@pytest.mark.parametrize(
+    "afters, decision",
+    [
+        ((30.0, 80.0), ("a", [], None)),  # 70% and clearly ahead of the runner-up: accepted
+        ((30.0, 40.0), (None, ["a", "b"], None)),  # a runner-up within 1.5x: these trials cannot tell them apart
+        ((60.0, 95.0), (None, [], "a")),  # significant and confirmed, but less than half: explains part only
+        ((95.0, 120.0), (None, [], None)),  # under 10% (and worse): no gain
+    ],
+)
 def test_an_effect_is_accepted_only_when_it_halves_the_held_out_error_and_no_rival_comes_close(afters, decision):
     candidates = [_checked(n, a) for n, a in zip("ab", afters, strict=True)]
     assert decide(candidates) == decision
@@ -243,8 +300,13 @@ def test_a_partial_explanation_is_reported_and_never_called_found_or_nothing():
 
 def test_a_noise_free_trial_is_its_own_twin_and_its_replays_error_is_all_bias(tmp_path):
     silent = dataclasses.replace(Noise().scaled(0.0), camera_dropout=0.0)
-    campaign = synthesize_campaign(tmp_path, design=[Case([], 1), Case([7], 1)], seed=3, noise=silent,
-                                   stop=Stop(line_x_m=None, revolutions=None, time_limit_s=2.0))
+    campaign = synthesize_campaign(
+        tmp_path,
+        design=[Case([], 1), Case([7], 1)],
+        seed=3,
+        noise=silent,
+        stop=Stop(line_x_m=None, revolutions=None, time_limit_s=2.0),
+    )
     for trial in campaign.trials:
         twin = noise_free_twin(trial, friction=Friction())
         # Equal to rounding: the twin's start heading round-trips through the trial's recorded pose.
@@ -275,8 +337,14 @@ DESIGN = [Case([], 1), Case([7], 2)]  # the nominal gait sees the wheels; a fail
 
 
 def _campaign(folder, effects, seed=11, design=DESIGN, seconds=SECONDS, truth_model="drake"):
-    synthesize_campaign(folder, design=design, effects=effects, seed=seed, truth_model=truth_model,
-                        stop=Stop(line_x_m=None, revolutions=None, time_limit_s=seconds))
+    synthesize_campaign(
+        folder,
+        design=design,
+        effects=effects,
+        seed=seed,
+        truth_model=truth_model,
+        stop=Stop(line_x_m=None, revolutions=None, time_limit_s=seconds),
+    )
     return load_campaign(folder)
 
 
@@ -292,19 +360,25 @@ def _diagnose(campaign, **kwargs):
 TURNING = [Case([], 2), Case([], 1, bias_deg=4.0), Case([], 1, bias_deg=-4.0)]
 
 
-# A failed joint's dry friction has a threshold (docs/diagnosis.md): 3 s trials, where 2 s ones tie it with a longitudinal
-# asymmetry. It is accepted at 0.40 (two trust steps) and estimated further once accepted (0.60 +- 0.05 (se)).
+# A failed joint's dry friction has a threshold (docs/diagnosis.md): 3 s trials, where 2 s ones tie it with a
+# longitudinal asymmetry. It is accepted at 0.40 (two trust steps) and estimated further once accepted (0.60 +- 0.05
+# (se)).
 # A lateral asymmetry needs the turning trials; at 0.5 on them it is ranked first but ties with a toe or a head
 # drag (docs/diagnosis.md: `ambiguous` on seeds 0-2), at 0.8 it is found (0.81 +- 0.02 (se); head drag 39% linear).
 # (A head drag on circling joint-2 trials was found here while the plant clamped the replays' servos at
 # 1.19 N m; with replays that follow the measured angles it is not detectable at 0.5-1.0 on 2-3 s trials.)
 @pytest.mark.slow
-@pytest.mark.parametrize("effect, key, value, design, seed, seconds", [
-    ("wheel_toe", "wheel_toe_deg", 1.5, DESIGN, 11, SECONDS),
-    ("joint_coulomb_friction", "joint_coulomb_Nm", 0.6, DESIGN, 0, 3.0),
-    ("lateral_friction_asymmetry", "lateral_friction_asymmetry", 0.8, TURNING, 0, 3.0)])
-def test_a_visible_hidden_effect_is_ranked_first_accepted_and_recovered(tmp_path, effect, key, value, design, seed,
-                                                                        seconds):
+@pytest.mark.parametrize(
+    "effect, key, value, design, seed, seconds",
+    [
+        ("wheel_toe", "wheel_toe_deg", 1.5, DESIGN, 11, SECONDS),
+        ("joint_coulomb_friction", "joint_coulomb_Nm", 0.6, DESIGN, 0, 3.0),
+        ("lateral_friction_asymmetry", "lateral_friction_asymmetry", 0.8, TURNING, 0, 3.0),
+    ],
+)
+def test_a_visible_hidden_effect_is_ranked_first_accepted_and_recovered(
+    tmp_path, effect, key, value, design, seed, seconds
+):
     result = _diagnose(_campaign(tmp_path, {key: value}, seed=seed, design=design, seconds=seconds))
     first = result.candidates[0]
     assert first.name == effect and first.accepted, result.rounds[0].table()
@@ -331,10 +405,14 @@ def test_a_visible_hidden_effect_is_ranked_first_accepted_and_recovered(tmp_path
 # when simulated (87% / 87%): `ambiguous`, both named. (A failed joint's 0.6 N m dry friction ties with a
 # longitudinal asymmetry on 2 s trials, 67% / 81% linear; on 3 s trials it is found: test_a_visible_hidden_effect_...)
 @pytest.mark.slow
-@pytest.mark.parametrize("effect, key, value, seed, seconds, named", [
-    ("head_drag", "head_drag_mu", 0.5, 0, SECONDS, False),
-    ("module_payload", "payload_kg", 0.8, 1, SECONDS, False),
-    ("longitudinal_friction_asymmetry", "longitudinal_friction_asymmetry", 0.8, 0, 3.0, True)])
+@pytest.mark.parametrize(
+    "effect, key, value, seed, seconds, named",
+    [
+        ("head_drag", "head_drag_mu", 0.5, 0, SECONDS, False),
+        ("module_payload", "payload_kg", 0.8, 1, SECONDS, False),
+        ("longitudinal_friction_asymmetry", "longitudinal_friction_asymmetry", 0.8, 0, 3.0, True),
+    ],
+)
 def test_look_alikes_get_no_confident_wrong_answer(tmp_path, effect, key, value, seed, seconds, named):
     result = _diagnose(_campaign(tmp_path, {key: value}, seed=seed, seconds=seconds))
     assert all(name == effect for name in result.accepted), (result.verdict, result.rounds[0].table())
@@ -353,8 +431,12 @@ def test_look_alikes_get_no_confident_wrong_answer(tmp_path, effect, key, value,
 # hidden in one campaign, to spend one.
 @pytest.mark.slow
 def test_effects_the_replays_cannot_see_are_reported_not_detectable_and_nothing_else_accepted(tmp_path):
-    result = _diagnose(_campaign(tmp_path, {"servo_lag_s": 0.05, "stribeck_ratio": 1.5, "ground_slope_deg": 4.0,
-                                            "ground_slope_direction_deg": 30.0}))
+    result = _diagnose(
+        _campaign(
+            tmp_path,
+            {"servo_lag_s": 0.05, "stribeck_ratio": 1.5, "ground_slope_deg": 4.0, "ground_slope_direction_deg": 30.0},
+        )
+    )
     assert result.accepted == [] and result.verdict == "no_missing_effect", result.rounds[0].table()
     hidden = {d["name"]: d for d in result.not_detectable}
     assert "servo_lag" in hidden and "gait" in hidden["servo_lag"]["experiment"]
@@ -405,14 +487,30 @@ def test_an_effect_outside_the_library_gets_no_confident_wrong_answer(tmp_path):
     assert result.verdict != "effect_found"
 
 
-@pytest.mark.parametrize("option, value, named", [("--design", "none,J7y", "'J7y'"),
-                                                  ("--design", "noneb4.4.4", "'noneb4.4.4'"),
-                                                  ("--effects", "wheel_toe,gravity", "'gravity'"),
-                                                  ("--strengths", "1,two", "'1,two'"),
-                                                  ("--strengths", "1,2", "joint_coulomb_Nm at 1.2,")])
+@pytest.mark.parametrize(
+    "option, value, named",
+    [
+        ("--design", "none,J7y", "'J7y'"),
+        ("--design", "noneb4.4.4", "'noneb4.4.4'"),
+        ("--effects", "wheel_toe,gravity", "'gravity'"),
+        ("--strengths", "1,two", "'1,two'"),
+        ("--strengths", "1,2", "joint_coulomb_Nm at 1.2,"),
+    ],
+)
 def test_the_benchmark_names_a_bad_option_in_one_line_before_any_campaign(tmp_path, option, value, named):
-    proc = subprocess.run([sys.executable, str(REPO / "benchmarks" / "diagnosis.py"), option, value,
-                           "--out", str(tmp_path / "rows.jsonl")], capture_output=True, text=True, timeout=120)
+    proc = subprocess.run(
+        [
+            sys.executable,
+            str(REPO / "benchmarks" / "diagnosis.py"),
+            option,
+            value,
+            "--out",
+            str(tmp_path / "rows.jsonl"),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert proc.returncode != 0 and not (tmp_path / "rows.jsonl").exists()
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith(option) and named in lines[0], proc.stderr

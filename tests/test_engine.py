@@ -11,6 +11,7 @@ import math
 
 import numpy as np
 import pytest
+from conftest import first_seconds
 from pydrake.systems.framework import DiagramBuilder
 
 from rc1_drake.config import Failure, Gait, HeadingControl, Scenario, Stop
@@ -22,8 +23,6 @@ from rc1_drake.measurements import load_trial
 from rc1_drake.model import add_rc1_plant, set_payload
 from rc1_drake.protocol import Session
 from rc1_drake.replay import Replayer
-
-from conftest import first_seconds
 
 HORIZON_S = 2.0  # long enough for every effect to show; the Drake runs keep the file to about a minute
 CAMPAIGN = "data/paper_campaign"
@@ -59,8 +58,15 @@ def test_chain_terms_match_the_plant_on_random_states():
         plant.mutable_gravity_field().set_gravity_vector(gravity)
         set_payload(plant, context, payload_module, 0.4)
         plant.SetPositionsAndVelocities(context, x)
-        M, bias, g = chain_terms(x, numbers.masses(payload_module, 0.4), numbers.central_yaw_inertia, numbers.com,
-                                 jp, jc, complex(gravity[0], gravity[1]))
+        M, bias, g = chain_terms(
+            x,
+            numbers.masses(payload_module, 0.4),
+            numbers.central_yaw_inertia,
+            numbers.com,
+            jp,
+            jc,
+            complex(gravity[0], gravity[1]),
+        )
         np.testing.assert_allclose(M, plant.CalcMassMatrix(context), atol=1e-12)
         np.testing.assert_allclose(bias, plant.CalcBiasTerm(context), atol=1e-11)
         np.testing.assert_allclose(g, plant.CalcGravityGeneralizedForces(context), atol=1e-12)
@@ -102,8 +108,9 @@ def test_crossing_and_circling_stop_both_engines_alike():
     drake, compiled = both(crossing)
     assert drake.stop_reason == "crossed"
     assert_equivalent(drake, compiled)
-    circling = dataclasses.replace(Scenario(gait=Gait(bias_deg=4.0)),
-                                   stop=Stop(line_x_m=None, revolutions=0.25, time_limit_s=3.0))
+    circling = dataclasses.replace(
+        Scenario(gait=Gait(bias_deg=4.0)), stop=Stop(line_x_m=None, revolutions=0.25, time_limit_s=3.0)
+    )
     drake, compiled = both(circling)
     assert drake.stop_reason == "circling"
     assert_equivalent(drake, compiled)
@@ -128,8 +135,10 @@ def test_replays_of_shipped_trials_agree(stem):
     assert_equivalent(drake, compiled.run(friction, {"wheel_toe_deg": 1.0}))
     # The bootstrap's path: the same replayer on other angles, then back on the trial's.
     noisy = trial.q + compiled.angle_noise(np.random.default_rng(0), 0.01)
-    assert_equivalent(Replayer(trial, engine="drake").run_with_angles(friction, None, noisy),
-                      compiled.run_with_angles(friction, None, noisy))
+    assert_equivalent(
+        Replayer(trial, engine="drake").run_with_angles(friction, None, noisy),
+        compiled.run_with_angles(friction, None, noisy),
+    )
     assert_equivalent(drake, compiled.run(friction, {"wheel_toe_deg": 1.0}))
 
 

@@ -19,8 +19,11 @@ def test_inverse_dynamics_of_the_simulators_own_states_recovers_the_wheel_fricti
     friction prediction does) makes the wheels slip; with the simulator's states at its own step (the velocity
     change of a step and the velocity it ends with, as the implicit friction sees them), the base rows
     are linear in the coefficients and the bounded least squares gives them back."""
-    scenario = Scenario(gait=Gait(amplitude_deg=30.0, phase_step_deg=0.0, frequency_deg_s=360.0), numerics=Numerics(time_step_s=5e-4, log_period_s=5e-4),
-                        stop=Stop(line_x_m=None, revolutions=None, time_limit_s=2.5))
+    scenario = Scenario(
+        gait=Gait(amplitude_deg=30.0, phase_step_deg=0.0, frequency_deg_s=360.0),
+        numerics=Numerics(time_step_s=5e-4, log_period_s=5e-4),
+        stop=Stop(line_x_m=None, revolutions=None, time_limit_s=2.5),
+    )
     run = simulate(scenario=scenario)
     q, v = run.state[:, :16], run.state[:, 16:]
     k = np.arange(400, len(run.t) - 2, 5)
@@ -40,11 +43,27 @@ def test_equation_error_reports_what_the_paper_gait_cannot_show(tmp_path, capsys
     identifiable by equation error, which says so, names the gait that would do, leaves the failure trial
     out, and keeps the start values."""
     folder = tmp_path / "c"
-    synthesize_campaign(folder, design=[Case([], 1), Case([7], 1)], seed=4,
-                        stop=Stop(line_x_m=None, revolutions=None, time_limit_s=2.0))
+    synthesize_campaign(
+        folder, design=[Case([], 1), Case([7], 1)], seed=4, stop=Stop(line_x_m=None, revolutions=None, time_limit_s=2.0)
+    )
     out = tmp_path / "ee.json"
-    assert main(["identify", str(folder), "--method", "equation-error", "--trials", "nominal_1", "--json", str(out),
-                 "--workers", "1"]) == 0
+    assert (
+        main(
+            [
+                "identify",
+                str(folder),
+                "--method",
+                "equation-error",
+                "--trials",
+                "nominal_1",
+                "--json",
+                str(out),
+                "--workers",
+                "1",
+            ]
+        )
+        == 0
+    )
     printed = capsys.readouterr().out
     record = json.loads(out.read_text())
     assert record["method"] == "equation-error" and record["simulations"] == 0

@@ -15,13 +15,15 @@ def test_hand_computed_forces_exact_sign():
     # A wheel rolling forward at 0.3 m/s and slipping left at 0.02 m/s:
     #   F_long = -(0.14 * 0.3 + 0.12 * 2.80566) = -0.378679 N
     #   F_lat  = -(3.75 * 0.02 + 1.5 * 2.80566) = -4.283490 N
-    f_long, f_lat = wheel_friction_forces(np.array([0.3]), np.array([0.02]), normal_force=np.array([N]), eps=0.0,
-                                          **PAPER)
+    f_long, f_lat = wheel_friction_forces(
+        np.array([0.3]), np.array([0.02]), normal_force=np.array([N]), eps=0.0, **PAPER
+    )
     assert f_long[0] == pytest.approx(-0.378679, abs=1e-6)
     assert f_lat[0] == pytest.approx(-4.283490, abs=1e-6)
     # Backward and to the right: the signs flip, magnitudes stay (friction is odd in v).
-    b_long, b_lat = wheel_friction_forces(np.array([-0.3]), np.array([-0.02]), normal_force=np.array([N]), eps=0.0,
-                                          **PAPER)
+    b_long, b_lat = wheel_friction_forces(
+        np.array([-0.3]), np.array([-0.02]), normal_force=np.array([N]), eps=0.0, **PAPER
+    )
     assert b_long[0] == pytest.approx(-f_long[0]) and b_lat[0] == pytest.approx(-f_lat[0])
 
 
@@ -52,8 +54,9 @@ def test_implicit_step_solves_backward_euler(seed):
     damping = np.zeros(len(v))
     damping[-1] = 0.045
     p_free = mass @ v + dt * np.linspace(-1, 1, len(v))
-    tau = implicit_friction_force(jl, jt, damping, mass, p_free, v, dt, normal_force=normal, eps=eps, newton_steps=8,
-                                  **PAPER)
+    tau = implicit_friction_force(
+        jl, jt, damping, mass, p_free, v, dt, normal_force=normal, eps=eps, newton_steps=8, **PAPER
+    )
     v_next = np.linalg.solve(mass, p_free + dt * tau)
     f_long, f_lat = wheel_friction_forces(jl @ v_next, jt @ v_next, normal_force=normal, eps=eps, **PAPER)
     expected = jl.T @ f_long + jt.T @ f_lat - damping * v_next
@@ -70,8 +73,20 @@ def test_implicit_servos_solve_backward_euler_within_their_power():
     rate = np.array([0.0, 0.0, 0.25, 0.25, 0.25, 0.25])  # Kd + dt Kp
     power = np.array([0.0, 0.0, 1.19, 1.19, 1.19, 1.19])
     p_free = mass @ v + dt * np.linspace(-1, 1, n)
-    tau, torque = implicit_friction_force(jl, jt, np.zeros(n), mass, p_free, v, dt, normal_force=normal, eps=eps,
-                                          newton_steps=8, servo=(offset, rate, power), **PAPER)
+    tau, torque = implicit_friction_force(
+        jl,
+        jt,
+        np.zeros(n),
+        mass,
+        p_free,
+        v,
+        dt,
+        normal_force=normal,
+        eps=eps,
+        newton_steps=8,
+        servo=(offset, rate, power),
+        **PAPER,
+    )
     v_next = np.linalg.solve(mass, p_free + dt * (tau + torque))
     assert np.allclose(torque, np.clip(offset - rate * v_next, -power, power), rtol=1e-9, atol=1e-12)
     assert torque[4] == 1.19 and np.all(np.abs(torque[2:4]) < 1.19) and torque[5] != 0.0
@@ -84,8 +99,9 @@ def test_implicit_step_tends_to_the_explicit_law_for_small_steps():
     v = v * 20  # sliding well outside the smoothing zone
     normal = np.full(len(jl), N)
     dt = 1e-9
-    tau = implicit_friction_force(jl, jt, np.zeros(len(v)), mass, mass @ v, v, dt, normal_force=normal, eps=1e-3,
-                                  newton_steps=2, **PAPER)
+    tau = implicit_friction_force(
+        jl, jt, np.zeros(len(v)), mass, mass @ v, v, dt, normal_force=normal, eps=1e-3, newton_steps=2, **PAPER
+    )
     f_long, f_lat = wheel_friction_forces(jl @ v, jt @ v, normal_force=normal, eps=1e-3, **PAPER)
     assert np.allclose(tau, jl.T @ f_long + jt.T @ f_lat, rtol=1e-5)
 
@@ -94,8 +110,9 @@ def test_implicit_friction_dissipates_and_is_bounded():
     mass, jl, jt, v = _random_problem(4)
     normal = np.full(len(jl), N)
     for dt in (1e-4, 1e-3, 1e-2):
-        tau = implicit_friction_force(jl, jt, np.zeros(len(v)), mass, mass @ v, v, dt, normal_force=normal,
-                                      eps=1e-3, newton_steps=4, **PAPER)
+        tau = implicit_friction_force(
+            jl, jt, np.zeros(len(v)), mass, mass @ v, v, dt, normal_force=normal, eps=1e-3, newton_steps=4, **PAPER
+        )
         v_next = v + dt * np.linalg.solve(mass, tau)
         assert v_next @ mass @ v_next < v @ mass @ v  # kinetic energy falls
         assert tau @ v_next < 0  # friction does negative work
@@ -115,8 +132,20 @@ def test_implicit_step_converges_with_stiff_servos_at_their_clamp():
         v = rng.normal(scale=0.3, size=n)
         offset = np.r_[np.zeros(3), rng.normal(scale=3.0, size=13) + 1.3 * v[3:]]
         p_free = mass @ v + dt * rng.normal(size=n)
-        tau, torque = implicit_friction_force(jl, jt, np.zeros(n), mass, p_free, v, dt, normal_force=np.full(w, N),
-                                              eps=1e-3, newton_steps=20, servo=(offset, rate, power), **PAPER)
+        tau, torque = implicit_friction_force(
+            jl,
+            jt,
+            np.zeros(n),
+            mass,
+            p_free,
+            v,
+            dt,
+            normal_force=np.full(w, N),
+            eps=1e-3,
+            newton_steps=20,
+            servo=(offset, rate, power),
+            **PAPER,
+        )
         v_next = np.linalg.solve(mass, p_free + dt * (tau + torque))
         assert np.allclose(torque, np.clip(offset - rate * v_next, -power, power), rtol=0, atol=1e-8), seed
         f_long, f_lat = wheel_friction_forces(jl @ v_next, jt @ v_next, normal_force=np.full(w, N), eps=1e-3, **PAPER)

@@ -9,18 +9,19 @@ import numpy as np
 import pytest
 
 from rc1_drake.cli import main
-from rc1_drake.config import FRICTION_NAMES, Friction, Rc1Error, Stop, Z95
+from rc1_drake.config import FRICTION_NAMES, Z95, Friction, Rc1Error, Stop
 from rc1_drake.identify import Eq6Objective, avs, friction_to_yaml, load_friction_file
-from rc1_drake.sysid.parameters import PAPER_MANUAL
 from rc1_drake.measurements import load_campaign
 from rc1_drake.synthesize import Case, synthesize_campaign
+from rc1_drake.sysid.parameters import PAPER_MANUAL
 
 
 @pytest.fixture(scope="module")
 def campaign(tmp_path_factory):
     folder = tmp_path_factory.mktemp("ident") / "campaign"
-    synthesize_campaign(folder, design=[Case([7], 1)], seed=5,
-                        stop=Stop(line_x_m=None, revolutions=None, time_limit_s=3.0))
+    synthesize_campaign(
+        folder, design=[Case([7], 1)], seed=5, stop=Stop(line_x_m=None, revolutions=None, time_limit_s=3.0)
+    )
     return load_campaign(folder)
 
 
@@ -76,8 +77,26 @@ def test_friction_file_round_trip_and_errors(tmp_path):
 def test_identify_command_writes_the_friction_file_that_run_reads(campaign, tmp_path, capsys):
     out = tmp_path / "friction.yaml"
     frozen = [arg for name in ("c_joint", "mu_long", "c_lat", "c_long") for arg in ("--freeze", name)]
-    assert main(["identify", str(campaign.path), "--iterations", "1", "--out", str(out), "--json",
-                 str(tmp_path / "avs.json"), "--plots", str(tmp_path / "plots"), "--workers", "1", *frozen]) == 0
+    assert (
+        main(
+            [
+                "identify",
+                str(campaign.path),
+                "--iterations",
+                "1",
+                "--out",
+                str(out),
+                "--json",
+                str(tmp_path / "avs.json"),
+                "--plots",
+                str(tmp_path / "plots"),
+                "--workers",
+                "1",
+                *frozen,
+            ]
+        )
+        == 0
+    )
     printed = capsys.readouterr().out
     assert "Param." in printed and "std. error" in printed
     record = json.loads((tmp_path / "avs.json").read_text())
@@ -93,8 +112,9 @@ def test_uncertainty_flags_what_the_trials_cannot_identify(tmp_path):
     from rc1_drake.sysid.stats import uncertainty
 
     folder = tmp_path / "c"
-    synthesize_campaign(folder, design=[Case([], 1), Case([7], 1)], seed=8,
-                        stop=Stop(line_x_m=None, revolutions=None, time_limit_s=3.0))
+    synthesize_campaign(
+        folder, design=[Case([], 1), Case([7], 1)], seed=8, stop=Stop(line_x_m=None, revolutions=None, time_limit_s=3.0)
+    )
     trials = {t.case: t for t in load_campaign(folder).trials}
     nominal = uncertainty(CampaignResiduals([trials["none"]]), Friction(), input_noise_samples=0)
     # Without a failed joint the joint friction c_joint does not enter the model at all.
@@ -114,9 +134,30 @@ def test_program_fit_descends_within_bounds(campaign, tmp_path):
     start = tmp_path / "start.yaml"
     start.write_text(friction_to_yaml(Friction(mu_long=0.08)))
     frozen = [arg for name in ("c_joint", "mu_lat", "c_lat", "c_long") for arg in ("--freeze", name)]
-    assert main(["identify", str(campaign.path), "--method", "program", "--iterations", "3", "--workers", "1",
-                 "--input-noise-samples", "0",
-                 "--start", str(start), "--json", str(tmp_path / "p.json"), "--out", str(out), *frozen]) == 0
+    assert (
+        main(
+            [
+                "identify",
+                str(campaign.path),
+                "--method",
+                "program",
+                "--iterations",
+                "3",
+                "--workers",
+                "1",
+                "--input-noise-samples",
+                "0",
+                "--start",
+                str(start),
+                "--json",
+                str(tmp_path / "p.json"),
+                "--out",
+                str(out),
+                *frozen,
+            ]
+        )
+        == 0
+    )
     record = json.loads((tmp_path / "p.json").read_text())
     assert record["cost"] <= record["cost_start"]
     assert 0.0 <= record["friction"]["mu_long"] <= 1.0
@@ -136,13 +177,21 @@ def test_program_fit_recovers_what_the_trials_identify_and_holds_the_rest(tmp_pa
     from rc1_drake.config import Gait
     from rc1_drake.identify import identify_program
     from rc1_drake.sysid.objective import CampaignResiduals
-    from rc1_drake.sysid.stats import uncertainty
     from rc1_drake.sysid.parameters import DEFAULT_PARAMETERS
+    from rc1_drake.sysid.stats import uncertainty
 
     folder = tmp_path / "c"
-    synthesize_campaign(folder, design=[Case([7], 1), Case([], 1), Case([], 1, gait=Gait(frequency_deg_s=70.0)),
-                                        Case([], 1, gait=Gait(frequency_deg_s=210.0))], seed=8,
-                        stop=Stop(line_x_m=None, revolutions=None, time_limit_s=3.0))
+    synthesize_campaign(
+        folder,
+        design=[
+            Case([7], 1),
+            Case([], 1),
+            Case([], 1, gait=Gait(frequency_deg_s=70.0)),
+            Case([], 1, gait=Gait(frequency_deg_s=210.0)),
+        ],
+        seed=8,
+        stop=Stop(line_x_m=None, revolutions=None, time_limit_s=3.0),
+    )
     campaign = load_campaign(folder)
     truth = Friction()
 
@@ -150,16 +199,22 @@ def test_program_fit_recovers_what_the_trials_identify_and_holds_the_rest(tmp_pa
         return [dataclasses.replace(p, frozen=p.name not in names) for p in DEFAULT_PARAMETERS]
 
     # Three iterations (a user's default: ten): mu_lat 1.40 +- 0.81 (se). Eight input-noise draws, the default.
-    result, spread = identify_program(campaign, start=Friction(mu_lat=1.0, mu_long=0.08),
-                                      parameters=free("mu_lat", "mu_long"), max_iterations=3, workers=2,
-                                      input_noise_samples=8)
+    result, spread = identify_program(
+        campaign,
+        start=Friction(mu_lat=1.0, mu_long=0.08),
+        parameters=free("mu_lat", "mu_long"),
+        max_iterations=3,
+        workers=2,
+        input_noise_samples=8,
+    )
     assert result.held == ["mu_long"] and result.friction.mu_long == 0.08
     assert spread.names == ["mu_lat", "mu_long"] and not spread.identifiable[1]
     assert abs(spread.values[0] - truth.mu_lat) <= Z95 * spread.standard_errors[0], spread.table()
     assert any(w.startswith("mu_long: not identifiable") for w in spread.warnings())
     one_speed = [t for t in campaign.trials if t.gait.frequency_deg_s == 140.0]
-    confounded = uncertainty(CampaignResiduals(one_speed), truth, parameters=free("mu_long", "c_long"),
-                             input_noise_samples=0)  # the trials' own geometry of the two, without the input noise
+    confounded = uncertainty(
+        CampaignResiduals(one_speed), truth, parameters=free("mu_long", "c_long"), input_noise_samples=0
+    )  # the trials' own geometry of the two, without the input noise
     assert confounded.identifiable == [False, False] and abs(confounded.correlation[0][1]) > 0.9
 
 
@@ -179,8 +234,9 @@ def test_a_design_beyond_the_servos_is_refused(tmp_path):
     from rc1_drake.config import Gait
 
     with pytest.raises(Rc1Error, match=r"needs 188 deg/s of joint speed; RC1's servos reach 140 deg/s"):
-        synthesize_campaign(tmp_path / "c", design=[Case([], 1), Case([], 1, gait=Gait(amplitude_deg=30.0,
-                                                                                      frequency_deg_s=360.0))])
+        synthesize_campaign(
+            tmp_path / "c", design=[Case([], 1), Case([], 1, gait=Gait(amplitude_deg=30.0, frequency_deg_s=360.0))]
+        )
     assert not (tmp_path / "c").exists()
 
 
@@ -191,21 +247,28 @@ def test_an_effect_parameter_is_fitted_beside_the_friction(tmp_path):
     (With the sensor noise of data/README.md the estimates scatter by ~0.3 deg over seeds while the
     reported standard error is ~0.07: the potentiometer noise the replay follows is not in it yet.)"""
     from rc1_drake.identify import fit_program
-    from rc1_drake.sysid.objective import CampaignResiduals
-    from rc1_drake.sysid.stats import uncertainty
-    from rc1_drake.sysid.parameters import effect_parameters
     from rc1_drake.synthesize import Noise
+    from rc1_drake.sysid.objective import CampaignResiduals
+    from rc1_drake.sysid.parameters import effect_parameters
+    from rc1_drake.sysid.stats import uncertainty
 
     folder = tmp_path / "c"
-    synthesize_campaign(folder, design=[Case([], 1)], seed=4, effects={"wheel_toe_deg": 1.0}, noise=Noise().scaled(1e-6),
-                        stop=Stop(line_x_m=None, revolutions=None, time_limit_s=3.0))
+    synthesize_campaign(
+        folder,
+        design=[Case([], 1)],
+        seed=4,
+        effects={"wheel_toe_deg": 1.0},
+        noise=Noise().scaled(1e-6),
+        stop=Stop(line_x_m=None, revolutions=None, time_limit_s=3.0),
+    )
     residuals = CampaignResiduals(load_campaign(folder).trials)
     parameters = effect_parameters("wheel_toe")
     result = fit_program(residuals, start=Friction(), parameters=parameters, max_iterations=5)
     assert result.friction == Friction() and set(result.effects) == {"wheel_toe_deg"}
     assert result.effects["wheel_toe_deg"] == pytest.approx(1.0, rel=0.1)
-    spread = uncertainty(residuals, result.friction, parameters=parameters, effects=result.effects,
-                         input_noise_samples=0)  # no sensor noise here
+    spread = uncertainty(
+        residuals, result.friction, parameters=parameters, effects=result.effects, input_noise_samples=0
+    )  # no sensor noise here
     assert spread.values == [result.effects["wheel_toe_deg"]] and spread.identifiable == [True]
 
 
@@ -215,19 +278,24 @@ def test_input_noise_widens_the_intervals_to_cover_the_scatter(tmp_path):
     the replay widens the interval until it covers the truth."""
     from rc1_drake.identify import fit_program
     from rc1_drake.sysid.objective import CampaignResiduals
-    from rc1_drake.sysid.stats import uncertainty
     from rc1_drake.sysid.parameters import effect_parameters
+    from rc1_drake.sysid.stats import uncertainty
 
     folder = tmp_path / "c"
-    synthesize_campaign(folder, design=[Case([], 1)], seed=4, effects={"wheel_toe_deg": 1.0},
-                        stop=Stop(line_x_m=None, revolutions=None, time_limit_s=3.0))
+    synthesize_campaign(
+        folder,
+        design=[Case([], 1)],
+        seed=4,
+        effects={"wheel_toe_deg": 1.0},
+        stop=Stop(line_x_m=None, revolutions=None, time_limit_s=3.0),
+    )
     residuals = CampaignResiduals(load_campaign(folder).trials)
     parameters = effect_parameters("wheel_toe")
     result = fit_program(residuals, start=Friction(), parameters=parameters, max_iterations=4)
-    narrow = uncertainty(residuals, result.friction, parameters=parameters, effects=result.effects,
-                         input_noise_samples=0)
-    wide = uncertainty(residuals, result.friction, parameters=parameters, effects=result.effects,
-                       input_noise_samples=8)
+    narrow = uncertainty(
+        residuals, result.friction, parameters=parameters, effects=result.effects, input_noise_samples=0
+    )
+    wide = uncertainty(residuals, result.friction, parameters=parameters, effects=result.effects, input_noise_samples=8)
     (toe,), (se_out,), (se_in,) = narrow.values, narrow.standard_errors, wide.standard_errors
     assert abs(toe - 1.0) > 3 * se_out  # the output-noise interval misses the truth ...
     assert abs(toe - 1.0) <= Z95 * se_in and se_in > 2 * se_out  # ... the one with the input noise covers it
@@ -250,9 +318,11 @@ def test_exact_residual_jacobian_matches_finite_differences(campaign):
     for p, name in enumerate(names):
         h = 1e-6
 
-        def at(sign):
+        def at(sign, name=name, h=h):
             if name in FRICTION_NAMES:
-                return residuals(dataclasses.replace(Friction(), **{name: getattr(Friction(), name) + sign * h}), effects)
+                return residuals(
+                    dataclasses.replace(Friction(), **{name: getattr(Friction(), name) + sign * h}), effects
+                )
             return residuals(Friction(), {**effects, name: effects[name] + sign * h})
 
         expected = (at(1) - at(-1)) / (2 * h)

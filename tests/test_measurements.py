@@ -22,9 +22,19 @@ def make_trial(failed=(7,), camera=True, n=50):
     cam = np.column_stack([t * 0.3, 0.01 * t, 0.1 * np.sin(t)]) if camera else None
     if camera:
         cam[3] = np.nan
-    return Trial(trial_id="t1", failed_joints=list(failed), gait=Gait(phase_offset_deg=3.0), stop=Stop("line", 3.18),
-                 initial_head_pose=np.array([0.0, 0.01, 0.2]), final_head_xy=np.array([3.2, -0.4]), t=t, q=q,
-                 head_yaw_rate=np.cos(t), camera=cam, notes="test")
+    return Trial(
+        trial_id="t1",
+        failed_joints=list(failed),
+        gait=Gait(phase_offset_deg=3.0),
+        stop=Stop("line", 3.18),
+        initial_head_pose=np.array([0.0, 0.01, 0.2]),
+        final_head_xy=np.array([3.2, -0.4]),
+        t=t,
+        q=q,
+        head_yaw_rate=np.cos(t),
+        camera=cam,
+        notes="test",
+    )
 
 
 @pytest.fixture
@@ -79,12 +89,20 @@ def test_round_trip(good):
 
 
 def test_missing_column(good):
-    rewrite_csv(good, lambda ls: [",".join(c for c in l.split(",")[:-4]) + "," + l.split(",")[-4].replace("head_yaw_rate_rad_s", "x") if i == 0 else l for i, l in enumerate(ls)])
+    rewrite_csv(
+        good,
+        lambda ls: [
+            ",".join(c for c in line.split(",")[:-4]) + "," + line.split(",")[-4].replace("head_yaw_rate_rad_s", "x")
+            if i == 0
+            else line
+            for i, line in enumerate(ls)
+        ],
+    )
     expect_error(good, "t1.csv", "line 1", "missing column head_yaw_rate_rad_s")
 
 
 def test_unknown_column(good):
-    rewrite_csv(good, lambda ls: [l + (",battery_v" if i == 0 else ",7.1") for i, l in enumerate(ls)])
+    rewrite_csv(good, lambda ls: [line + (",battery_v" if i == 0 else ",7.1") for i, line in enumerate(ls)])
     expect_error(good, "t1.csv", "line 1", "unknown column 'battery_v'")
 
 
@@ -180,10 +198,14 @@ def test_yaw_rate_in_degrees(good):
         (lambda d: d.update(final_head_xy_m=[1.0]), "final_head_xy_m: expected [x, y]"),
         (lambda d: d["initial_head_pose"].pop("yaw_rad"), "initial_head_pose.yaw_rad: missing"),
         (lambda d: d.update(stop={"type": "revolutions", "count": -2}), "stop.count: must be > 0"),
-        (lambda d: d.update(initial_head_rates={"vx_m_s": 0.1, "vy_m_s": 0.0}),
-         "initial_head_rates.yaw_rate_rad_s: missing"),
-        (lambda d: d.update(initial_head_rates={"vx_m_s": 0.1, "vy_m_s": None, "yaw_rate_rad_s": 0.0}),
-         "initial_head_rates.vy_m_s: expected a number"),
+        (
+            lambda d: d.update(initial_head_rates={"vx_m_s": 0.1, "vy_m_s": 0.0}),
+            "initial_head_rates.yaw_rate_rad_s: missing",
+        ),
+        (
+            lambda d: d.update(initial_head_rates={"vx_m_s": 0.1, "vy_m_s": None, "yaw_rate_rad_s": 0.0}),
+            "initial_head_rates.vy_m_s: expected a number",
+        ),
     ],
 )
 def test_bad_json_keys(good, edit, fragment):

@@ -30,5 +30,7 @@ def test_notebook_runs(path, tmp_path, monkeypatch):
     NotebookClient(nb, timeout=900, kernel_name="python3", resources={"metadata": {"path": str(tmp_path)}}).execute()
     outputs = [o for c in nb.cells if c.cell_type == "code" for o in c.outputs]
     assert not [o for o in outputs if o.output_type == "error"]
-    figures = [o for o in outputs if o.output_type == "display_data" and ("image/png" in o.data or "image/svg+xml" in o.data)]
+    figures = [
+        o for o in outputs if o.output_type == "display_data" and ("image/png" in o.data or "image/svg+xml" in o.data)
+    ]
     assert figures, "a notebook that draws nothing"

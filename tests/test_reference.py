@@ -7,7 +7,6 @@ failed joint, not the servo model. The smoothing is coarser than the default (5 
 to keep the stiff reference integration short.
 """
 
-
 import numpy as np
 import pytest
 
@@ -43,8 +42,16 @@ def test_a_campaign_made_by_the_reference_model_records_its_own_start(tmp_path):
     from rc1_drake.synthesize import Case, Noise, synthesize_campaign
 
     silent = dataclasses.replace(Noise().scaled(0.0), camera_dropout=0.0)
-    synthesize_campaign(tmp_path / "c", design=[Case([], 1)], truth_model="reference", record_after_s=0.5,
-                        sample_period_s=0.02, stop=Stop(time_limit_s=1.0), noise=silent, seed=3)
+    synthesize_campaign(
+        tmp_path / "c",
+        design=[Case([], 1)],
+        truth_model="reference",
+        record_after_s=0.5,
+        sample_period_s=0.02,
+        stop=Stop(time_limit_s=1.0),
+        noise=silent,
+        seed=3,
+    )
     trial = load_campaign(tmp_path / "c").trials[0]
     np.testing.assert_allclose(np.diff(trial.t), 0.02, atol=1e-9)
     assert trial.t[-1] == pytest.approx(1.0)
@@ -53,10 +60,12 @@ def test_a_campaign_made_by_the_reference_model_records_its_own_start(tmp_path):
     start_speed = np.linalg.norm(trial.camera[1, :2] - trial.camera[0, :2]) / 0.02
     assert start_speed > 0.05  # m/s: the head was moving when the recording began
     with pytest.raises(Rc1Error, match="can express wheel_toe_deg and the sensor faults .* only, not head_drag_mu"):
-        synthesize_campaign(tmp_path / "d", design=[Case([], 1)], truth_model="reference",
-                            effects={"head_drag_mu": 0.2})
+        synthesize_campaign(
+            tmp_path / "d", design=[Case([], 1)], truth_model="reference", effects={"head_drag_mu": 0.2}
+        )
     with pytest.raises(Rc1Error, match="non-negative multiple of the sample period, got 0.015"):
-        synthesize_campaign(tmp_path / "e", design=[Case([], 1)], truth_model="reference", record_after_s=0.015,
-                            sample_period_s=0.01)
+        synthesize_campaign(
+            tmp_path / "e", design=[Case([], 1)], truth_model="reference", record_after_s=0.015, sample_period_s=0.01
+        )
     with pytest.raises(Rc1Error, match="truth model must be one of drake, reference, got 'mujoco'"):
         synthesize_campaign(tmp_path / "f", design=[Case([], 1)], truth_model="mujoco")

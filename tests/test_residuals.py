@@ -42,8 +42,8 @@ def test_correlation_discounts_autocorrelated_residuals():
 
 def test_a_hidden_wheel_toe_shows_as_a_growing_path_error(tmp_path):
     """The same 3 s no-failure trial with and without a 2 deg wheel toe, replayed by the paper's model:
-    with the toe the camera-path error grows several times faster and passes 2 cm at least twice as early. (A tilted floor
-    would not show here: the replayed snake follows its measured angles almost kinematically.)"""
+    with the toe the camera-path error grows several times faster and passes 2 cm at least twice as early. (A tilted
+    floor would not show here: the replayed snake follows its measured angles almost kinematically.)"""
     from rc1_drake.compare import compare_campaign
     from rc1_drake.config import Stop
     from rc1_drake.measurements import load_campaign
@@ -52,13 +52,23 @@ def test_a_hidden_wheel_toe_shows_as_a_growing_path_error(tmp_path):
 
     growth = {}
     for name, effects in (("plain", {}), ("toe", {"wheel_toe_deg": 2.0})):
-        synthesize_campaign(tmp_path / name, design=[Case([], 1)], seed=6, effects=effects,
-                            stop=Stop(line_x_m=None, revolutions=None, time_limit_s=3.0))
+        synthesize_campaign(
+            tmp_path / name,
+            design=[Case([], 1)],
+            seed=6,
+            effects=effects,
+            stop=Stop(line_x_m=None, revolutions=None, time_limit_s=3.0),
+        )
         campaign = load_campaign(tmp_path / name)
         (row,) = where_it_fails(compare_campaign(campaign, workers=1), campaign).trials
         growth[name] = row
     assert growth["toe"].position_error_growth_m_s > 3 * abs(growth["plain"].position_error_growth_m_s)
     toe_at, plain_at = growth["toe"].exceeds_2cm_at_s, growth["plain"].exceeds_2cm_at_s
     assert toe_at is not None and (plain_at is None or plain_at > 2 * toe_at)
-    assert set(growth["plain"].correlations) == {"heading_sin", "heading_cos", "lateral_slip", "gait_phase_sin",
-                                                "gait_phase_cos"}
+    assert set(growth["plain"].correlations) == {
+        "heading_sin",
+        "heading_cos",
+        "lateral_slip",
+        "gait_phase_sin",
+        "gait_phase_cos",
+    }

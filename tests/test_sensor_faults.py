@@ -7,6 +7,7 @@ import math
 
 import numpy as np
 import pytest
+from conftest import first_seconds
 
 from rc1_drake.config import Friction, Gait, JointGait, Scenario, Stop
 from rc1_drake.effects import LIBRARY, commanded_gait, sensor_model
@@ -16,8 +17,6 @@ from rc1_drake.protocol import simulate
 from rc1_drake.replay import Replayer, tracking_rms_deg
 from rc1_drake.smoothing import smoothed_samples
 from rc1_drake.synthesize import Case, Noise, Variation, synthesize_campaign
-
-from conftest import first_seconds
 
 CAMPAIGN = "data/paper_campaign"
 OFFSET_DEG = 3.0
@@ -89,10 +88,11 @@ def test_a_replay_takes_a_known_offset_back_out_of_the_data(engine):
     uncorrected = replayer.run(Friction())  # the replayer goes back to the data as read (up to the joint limit)
     assert 0.7 * OFFSET_DEG < math.degrees(np.mean(uncorrected.q[:, 8] - plain.q[:, 8])) <= OFFSET_DEG
     noisy = replayer.angle_noise(np.random.default_rng(0), 0.004)  # the bootstrap's path corrects alike
-    np.testing.assert_allclose(replayer.run_with_angles(Friction(), {"potentiometer_offset_j9_deg": OFFSET_DEG},
-                                                        reads_high + noisy).state,
-                               Replayer(trial, engine=engine).run_with_angles(Friction(), None, trial.q + noisy).state,
-                               atol=1e-8)
+    np.testing.assert_allclose(
+        replayer.run_with_angles(Friction(), {"potentiometer_offset_j9_deg": OFFSET_DEG}, reads_high + noisy).state,
+        Replayer(trial, engine=engine).run_with_angles(Friction(), None, trial.q + noisy).state,
+        atol=1e-8,
+    )
 
 
 GAIT = Gait(amplitude_deg=30.0)  # within the joint limits when a joint's bias moves by the offset
@@ -116,11 +116,13 @@ def test_a_gait_driven_joint_settles_off_its_command_while_its_potentiometer_rea
     assert -OFFSET_DEG <= moved[8] < -0.7 * OFFSET_DEG  # the servo's own tracking error keeps part of it
 
 
-@pytest.mark.parametrize("key, value", [("potentiometer_offset_j9_deg", OFFSET_DEG),
-                                        ("potentiometer_gain_j9_error", 0.2)])
+@pytest.mark.parametrize(
+    "key, value", [("potentiometer_offset_j9_deg", OFFSET_DEG), ("potentiometer_gain_j9_error", 0.2)]
+)
 @pytest.mark.parametrize("truth_model", ["drake", "reference"])
-def test_a_synthesized_fault_is_in_the_readings_and_a_replay_with_it_fits_as_a_fault_free_one(tmp_path, truth_model,
-                                                                                             key, value):
+def test_a_synthesized_fault_is_in_the_readings_and_a_replay_with_it_fits_as_a_fault_free_one(
+    tmp_path, truth_model, key, value
+):
     """Noise-free, the faulty potentiometer reads what the command asks (drake: about as well as a sound one;
     reference: exactly); replayed with the fault, the trial ends as near its measured end as the same trial made
     without the fault does, and clearly nearer than replayed without it."""
@@ -128,9 +130,15 @@ def test_a_synthesized_fault_is_in_the_readings_and_a_replay_with_it_fits_as_a_f
     trials = {}
     for fault in (0.0, value):
         folder = tmp_path / f"fault_{fault:g}"
-        synthesize_campaign(folder, design=[Case([], 1, gait=GAIT)], effects={key: fault},
-                            noise=silent, variation=Variation(0.0, 0.0, 0.0), truth_model=truth_model,
-                            stop=Stop(line_x_m=None, revolutions=None, time_limit_s=3.0))
+        synthesize_campaign(
+            folder,
+            design=[Case([], 1, gait=GAIT)],
+            effects={key: fault},
+            noise=silent,
+            variation=Variation(0.0, 0.0, 0.0),
+            truth_model=truth_model,
+            stop=Stop(line_x_m=None, revolutions=None, time_limit_s=3.0),
+        )
         trials[fault] = load_campaign(folder).trials[0]
     faulty = trials[value]
     command = np.array([serpenoid(t, faulty.gait)[0][8] for t in faulty.t - faulty.t[0]])
@@ -151,23 +159,40 @@ def test_a_synthesized_fault_is_in_the_readings_and_a_replay_with_it_fits_as_a_f
 def test_the_library_names_two_sensor_faults_per_joint_and_the_camera_and_imu_faults():
     faults = [e.name for e in LIBRARY.values() if e.sensor]
     assert faults == [f"potentiometer_{kind}_j{j}" for kind in ("offset", "gain") for j in range(1, 14)] + [
-        "camera_delay", "imu_fault"]
+        "camera_delay",
+        "imu_fault",
+    ]
     assert all(LIBRARY[n].seen_in_replay and not LIBRARY[n].differentiable for n in faults)
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason="kinematic replays of servo-driven data: joint 9 at 5 deg misfits more than "
-                                       "joint 11 at 4.9 (docs/findings.md, 2026-11-25)")
+@pytest.mark.xfail(
+    strict=True,
+    reason="kinematic replays of servo-driven data: joint 9 at 5 deg misfits more than "
+    "joint 11 at 4.9 (docs/findings.md, 2026-11-25)",
+)
 def test_a_diagnosis_asked_for_sensor_faults_names_the_joint_whose_potentiometer_is_off(tmp_path):
-    """A regression example (the rates over seeds: benchmarks/foreign.py, docs/measurements.md): joint 9 reading 5 deg high on
-    3 s `none,J7x2` trials. With the physical effects alone the same campaign is ambiguous or unexplained."""
-    from rc1_drake.diagnose import diagnose
+    """A regression example (the rates over seeds: benchmarks/foreign.py, docs/measurements.md): joint 9 reading
+    5 deg high on 3 s `none,J7x2` trials. With the physical effects alone the same campaign is ambiguous or
+    unexplained."""
     from rc1_drake.config import FRICTION_NAMES, Z95
+    from rc1_drake.diagnose import diagnose
 
-    synthesize_campaign(tmp_path, design=[Case([], 1), Case([7], 2)], effects={"potentiometer_offset_j9_deg": 5.0},
-                        seed=0, stop=Stop(line_x_m=None, revolutions=None, time_limit_s=3.0))
-    result = diagnose(load_campaign(tmp_path), friction=Friction(), held=FRICTION_NAMES, workers=2,
-                         probe_study=False, candidates=["physical", "sensor"])
+    synthesize_campaign(
+        tmp_path,
+        design=[Case([], 1), Case([7], 2)],
+        effects={"potentiometer_offset_j9_deg": 5.0},
+        seed=0,
+        stop=Stop(line_x_m=None, revolutions=None, time_limit_s=3.0),
+    )
+    result = diagnose(
+        load_campaign(tmp_path),
+        friction=Friction(),
+        held=FRICTION_NAMES,
+        workers=2,
+        probe_study=False,
+        candidates=["physical", "sensor"],
+    )
     assert result.accepted == ["potentiometer_offset_j9"] and result.verdict == "effect_found", result.rounds[0].table()
     estimate, se = result.final_coordinates["potentiometer_offset_j9_deg"]
     assert abs(estimate - 5.0) < Z95 * se, (estimate, se)
@@ -184,8 +209,15 @@ def test_a_late_camera_and_a_biased_imu_are_in_the_readings_and_the_replay_predi
     faults = {"camera_delay_s": 0.2, "imu_scale_error": 0.1, "imu_bias_rad_s": 0.05}
     trials = {}
     for name, effects in (("sound", {}), ("faulty", faults)):
-        synthesize_campaign(tmp_path / name, design=[Case([], 1)], effects=effects, noise=silent, seed=2,
-                            variation=Variation(0.0, 0.0, 0.0), stop=Stop(line_x_m=None, revolutions=None, time_limit_s=3.0))
+        synthesize_campaign(
+            tmp_path / name,
+            design=[Case([], 1)],
+            effects=effects,
+            noise=silent,
+            seed=2,
+            variation=Variation(0.0, 0.0, 0.0),
+            stop=Stop(line_x_m=None, revolutions=None, time_limit_s=3.0),
+        )
         trials[name] = load_campaign(tmp_path / name).trials[0]
     replayer = Replayer(trials["faulty"])
     assert np.array_equal(replayer.run(Friction(), faults).state, replayer.run(Friction()).state)
@@ -195,11 +227,17 @@ def test_a_late_camera_and_a_biased_imu_are_in_the_readings_and_the_replay_predi
         return float(np.sqrt(np.mean(trial_residual(trial, Replayer(trial).run(Friction(), effects))[2:] ** 2)))
 
     for camera, factor in ((True, 5.0), (False, 2.5)):  # the replayed yaw rate has its own ~0.05 rad/s error
-        sound, predicted, ignored = rms(trials["sound"], {}, camera), rms(trials["faulty"], faults, camera), \
-            rms(trials["faulty"], {}, camera)
+        sound, predicted, ignored = (
+            rms(trials["sound"], {}, camera),
+            rms(trials["faulty"], faults, camera),
+            rms(trials["faulty"], {}, camera),
+        )
         assert predicted < 1.5 * sound + 0.1 and ignored > factor * predicted, (camera, sound, predicted, ignored)
     run = replayer.run(Friction(), faults)
-    assert score_trial(trials["faulty"], run).yaw_rate_fit_pct > score_trial(trials["faulty"], replayer.run(Friction())).yaw_rate_fit_pct
+    assert (
+        score_trial(trials["faulty"], run).yaw_rate_fit_pct
+        > score_trial(trials["faulty"], replayer.run(Friction())).yaw_rate_fit_pct
+    )
     # The rows that fix a fitted start (its first 0.5 s at the full rate) see the sensors the same way (measured:
     # 0.47 sound, 0.51 predicted, 4.4 ignored).
     from rc1_drake.start import START_FIT_S, start_residual
@@ -208,8 +246,11 @@ def test_a_late_camera_and_a_biased_imu_are_in_the_readings_and_the_replay_predi
         rows = start_residual(trial, Replayer(trial).run(Friction(), effects), START_FIT_S)
         return float(np.sqrt(np.mean(rows**2)))
 
-    sound, predicted, ignored = start_rms(trials["sound"], {}), start_rms(trials["faulty"], faults), \
-        start_rms(trials["faulty"], {})
+    sound, predicted, ignored = (
+        start_rms(trials["sound"], {}),
+        start_rms(trials["faulty"], faults),
+        start_rms(trials["faulty"], {}),
+    )
     assert predicted < 1.5 * sound + 0.1 and ignored > 5.0 * predicted, (sound, predicted, ignored)
 
 
@@ -218,14 +259,25 @@ def test_a_diagnosis_asked_for_sensor_faults_finds_a_late_camera_the_physics_can
     """A regression example (rates: benchmarks/diagnosis.py --effects camera_delay): frames stamped 0.1 s late.
     The physical effects see nothing in it (no_missing_effect); asked for, the camera's delay is found and what is
     left is the noise (the twins' final positions are their heads', not what their late camera shows)."""
-    from rc1_drake.diagnose import diagnose
     from rc1_drake.config import FRICTION_NAMES, Z95
+    from rc1_drake.diagnose import diagnose
 
-    synthesize_campaign(tmp_path, design=[Case([], 1), Case([7], 2)], effects={"camera_delay_s": 0.1},
-                        seed=0, stop=Stop(line_x_m=None, revolutions=None, time_limit_s=3.0))
+    synthesize_campaign(
+        tmp_path,
+        design=[Case([], 1), Case([7], 2)],
+        effects={"camera_delay_s": 0.1},
+        seed=0,
+        stop=Stop(line_x_m=None, revolutions=None, time_limit_s=3.0),
+    )
     campaign = load_campaign(tmp_path)
-    result = diagnose(campaign, friction=Friction(), held=FRICTION_NAMES, workers=2, probe_study=False,
-                         candidates=["physical", "sensor"])
+    result = diagnose(
+        campaign,
+        friction=Friction(),
+        held=FRICTION_NAMES,
+        workers=2,
+        probe_study=False,
+        candidates=["physical", "sensor"],
+    )
     assert result.accepted == ["camera_delay"] and result.verdict == "effect_found", result.explanation
     estimate, se = result.final_coordinates["camera_delay_s"]
     assert abs(estimate - 0.1) < Z95 * se, (estimate, se)
@@ -235,16 +287,29 @@ def test_a_diagnosis_asked_for_sensor_faults_finds_a_late_camera_the_physics_can
 
 @pytest.mark.slow
 def test_a_diagnosis_asked_for_sensor_faults_names_a_potentiometer_gain_in_data_another_model_made(tmp_path):
-    """A regression example (rates: benchmarks/foreign.py, docs/measurements.md): reference.py's 3 s `none,J7x2` trials with joint
-    9 reading 8% large in its servo's loop, starts fitted (seed 2 of 0-5, where it was found 2/6; found, the estimate
-    sits at the 10% search bound)."""
-    from rc1_drake.diagnose import diagnose
+    """A regression example (rates: benchmarks/foreign.py, docs/measurements.md): reference.py's 3 s `none,J7x2`
+    trials with joint 9 reading 8% large in its servo's loop, starts fitted (seed 2 of 0-5, where it was found 2/6;
+    found, the estimate sits at the 10% search bound)."""
     from rc1_drake.config import FRICTION_NAMES, Z95
+    from rc1_drake.diagnose import diagnose
 
-    synthesize_campaign(tmp_path, design=[Case([], 1), Case([7], 2)], effects={"potentiometer_gain_j9_error": 0.08},
-                        seed=2, truth_model="reference", stop=Stop(line_x_m=None, revolutions=None, time_limit_s=3.0))
-    result = diagnose(load_campaign(tmp_path), friction=Friction(), held=FRICTION_NAMES, workers=2,
-                         probe_study=False, candidates=["physical", "sensor"], start_rates="fit")
+    synthesize_campaign(
+        tmp_path,
+        design=[Case([], 1), Case([7], 2)],
+        effects={"potentiometer_gain_j9_error": 0.08},
+        seed=2,
+        truth_model="reference",
+        stop=Stop(line_x_m=None, revolutions=None, time_limit_s=3.0),
+    )
+    result = diagnose(
+        load_campaign(tmp_path),
+        friction=Friction(),
+        held=FRICTION_NAMES,
+        workers=2,
+        probe_study=False,
+        candidates=["physical", "sensor"],
+        start_rates="fit",
+    )
     assert result.accepted == ["potentiometer_gain_j9"] and result.verdict == "effect_found", result.explanation
     estimate, se = result.final_coordinates["potentiometer_gain_j9_error"]
     assert abs(estimate - 0.08) < Z95 * se, (estimate, se)
@@ -256,9 +321,14 @@ def test_an_offset_in_the_acquisition_only_leaves_the_robot_alone_and_reads_past
     acquisition = {"potentiometer_offset_j9_deg": OFFSET_DEG, "potentiometer_offset_j9_in_servo_loop": 0.0}
     assert commanded_gait(GAIT, acquisition) == GAIT
     silent = dataclasses.replace(Noise().scaled(0.0), camera_dropout=0.0)
-    synthesize_campaign(tmp_path / "c", design=[Case([], 1)], effects={"potentiometer_offset_j9_deg": 5.0,
-                        "potentiometer_offset_j9_in_servo_loop": 0.0}, noise=silent, seed=1,
-                        stop=Stop(line_x_m=None, revolutions=None, time_limit_s=2.0))
+    synthesize_campaign(
+        tmp_path / "c",
+        design=[Case([], 1)],
+        effects={"potentiometer_offset_j9_deg": 5.0, "potentiometer_offset_j9_in_servo_loop": 0.0},
+        noise=silent,
+        seed=1,
+        stop=Stop(line_x_m=None, revolutions=None, time_limit_s=2.0),
+    )
     campaign = load_campaign(tmp_path / "c")
     assert [w.split("'")[0] for w in campaign.warnings()] == ["joint 9"]  # 38 + 5 deg at the wave's peaks
     with pytest.raises(Rc1Error, match="potentiometer_offset_j9_in_servo_loop: must be 1 .* or 0"):
@@ -269,14 +339,17 @@ def test_an_offset_in_the_acquisition_only_leaves_the_robot_alone_and_reads_past
 def test_readings_past_a_joint_limit_put_that_potentiometer_among_the_candidates_and_it_is_named(tmp_path):
     """A regression example: joint 9's acquisition reads 5 deg high (the robot is sound), its readings pass the
     limit, the loader warns, and the default diagnosis considers that joint's offset beside the physics."""
-    from rc1_drake.diagnose import diagnose
     from rc1_drake.config import FRICTION_NAMES, Z95
+    from rc1_drake.diagnose import diagnose
 
-    synthesize_campaign(tmp_path, design=[Case([], 1), Case([7], 2)], seed=0,
-                        effects={"potentiometer_offset_j9_deg": 5.0, "potentiometer_offset_j9_in_servo_loop": 0.0},
-                        stop=Stop(line_x_m=None, revolutions=None, time_limit_s=3.0))
-    result = diagnose(load_campaign(tmp_path), friction=Friction(), held=FRICTION_NAMES, workers=2,
-                         probe_study=False)
+    synthesize_campaign(
+        tmp_path,
+        design=[Case([], 1), Case([7], 2)],
+        seed=0,
+        effects={"potentiometer_offset_j9_deg": 5.0, "potentiometer_offset_j9_in_servo_loop": 0.0},
+        stop=Stop(line_x_m=None, revolutions=None, time_limit_s=3.0),
+    )
+    result = diagnose(load_campaign(tmp_path), friction=Friction(), held=FRICTION_NAMES, workers=2, probe_study=False)
     names = {c.name for c in result.candidates}
     assert "potentiometer_offset_j9" in names and not names & {"potentiometer_offset_j8", "potentiometer_offset_j10"}
     assert result.accepted == ["potentiometer_offset_j9"] and result.verdict == "effect_found", result.rounds[0].table()

@@ -49,7 +49,9 @@ def test_the_smoothed_angle_is_closer_to_the_truth_than_the_samples():
     noise = np.radians(0.25)
     spline = smoothing_spline(t, truth + rng.normal(0, noise, len(t)))
     assert np.sqrt(np.mean((spline(t) - truth) ** 2)) < 0.5 * noise
-    assert np.abs(spline.derivative()(t) - np.radians(38) * 2.44 * np.cos(2.44 * t))[50:-50].max() < 0.05  # 3% of the peak rate
+    assert (
+        np.abs(spline.derivative()(t) - np.radians(38) * 2.44 * np.cos(2.44 * t))[50:-50].max() < 0.05
+    )  # 3% of the peak rate
 
 
 def test_the_noise_estimate_counts_the_splines_degrees_of_freedom():

@@ -50,8 +50,9 @@ def test_dask_cluster_gives_the_same_results(local_rows, tmp_path):
     from distributed import LocalCluster
 
     rows, _ = local_rows
-    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
-                      dashboard_address=None) as cluster:
+    with LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=None
+    ) as cluster:
         with make_executor(scheduler=cluster.scheduler_address) as executor:
             dask_rows = run_sweep(jobs(), tmp_path / "results.jsonl", executor=executor, progress=False)
     for a, b in zip(rows, dask_rows, strict=True):
@@ -66,8 +67,9 @@ def test_resume_recomputes_nothing_done(local_rows, tmp_path):
         counting = CountingExecutor(pool)
         rows = run_sweep(jobs(), copy, executor=counting, progress=False)
         assert counting.submitted == 0 and len(rows) == 3
-        more = jobs() + make_jobs(failure_sets=single_failure_sets([3], include_none=False), trials=1, seed=3,
-                                  stop=SHORT)
+        more = jobs() + make_jobs(
+            failure_sets=single_failure_sets([3], include_none=False), trials=1, seed=3, stop=SHORT
+        )
         rows = run_sweep(more, copy, executor=counting, progress=False)
     assert counting.submitted == 1 and len(rows) == 4 and len(read_rows(copy)) == 4
 
@@ -84,8 +86,12 @@ def test_a_failing_run_is_recorded_and_the_sweep_completes(tmp_path):
 
 def test_sweep_command_writes_table_summary_and_figures(tmp_path, capsys):
     out = tmp_path / "sweep"
-    assert main(["sweep", "--out", str(out), "--trials", "1", "--joints", "2,9", "--time-limit-s", "1.5",
-                 "--workers", "2"]) == 0
+    assert (
+        main(
+            ["sweep", "--out", str(out), "--trials", "1", "--joints", "2,9", "--time-limit-s", "1.5", "--workers", "2"]
+        )
+        == 0
+    )
     printed = capsys.readouterr().out
     assert "J2" in printed and "front (J1-J6)" in printed and "rear (J8-J13)" in printed
     summary = json.loads((out / "summary.json").read_text())
@@ -123,8 +129,11 @@ def test_heading_feedback_and_reverse_drive_are_wired():
     from rc1_drake.config import Numerics
     from rc1_drake.protocol import simulate
 
-    scenario = Scenario(failures=[Failure(joint=7)], numerics=Numerics(time_step_s=1e-3),
-                        stop=Stop(line_x_m=None, revolutions=None, time_limit_s=6.0))
+    scenario = Scenario(
+        failures=[Failure(joint=7)],
+        numerics=Numerics(time_step_s=1e-3),
+        stop=Stop(line_x_m=None, revolutions=None, time_limit_s=6.0),
+    )
     plain = simulate(scenario=scenario)
     fed = simulate(scenario=with_heading_control(scenario))
     assert abs(fed.head_xy[-1, 1]) < abs(plain.head_xy[-1, 1])

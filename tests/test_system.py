@@ -5,8 +5,8 @@ import math
 
 import numpy as np
 import pytest
-
 from conftest import with_stop
+
 from rc1_drake.config import Failure, Friction, Gait, Scenario, Start
 from rc1_drake.metrics import summarize
 

@@ -2,12 +2,11 @@
 
 import numpy as np
 import pytest
+from conftest import first_seconds
 
 from rc1_drake.engine.dynamics import chain_terms, plant_numbers
 from rc1_drake.engine.tangent import chain_tangent, wheel_local_tangent
 from rc1_drake.kinematics import wheel_kinematics_kernel
-
-from conftest import first_seconds
 
 H = 1e-6
 
@@ -48,27 +47,36 @@ def test_wheel_local_tangent_matches_central_differences():
         local, dlocal = wheel_local_tangent(x, dx, jp, jc, module, offset, toe)
         np.testing.assert_allclose(local, _local(x, (jp, jc, module, offset, toe)), atol=1e-14)
         for d in range(len(dx)):
-            expected = (_local(x + H * dx[d], (jp, jc, module, offset, toe))
-                        - _local(x - H * dx[d], (jp, jc, module, offset, toe))) / (2 * H)
+            expected = (
+                _local(x + H * dx[d], (jp, jc, module, offset, toe))
+                - _local(x - H * dx[d], (jp, jc, module, offset, toe))
+            ) / (2 * H)
             np.testing.assert_allclose(dlocal[d], expected, atol=1e-8)
 
 
 def test_friction_tangent_matches_central_differences_of_the_solve():
     """dv+ of the implicit friction and servo step along state, parameter and command directions, against
     central differences of the solve itself (eps = 1 cm/s keeps the law smooth on the difference's scale)."""
+    from rc1_drake import friction as fr
     from rc1_drake.config import Failure, Scenario, Stop
     from rc1_drake.effects import model_setup
     from rc1_drake.engine.session import CompiledSession
     from rc1_drake.engine.tangent import friction_tangent
-    from rc1_drake import friction as fr
 
     numbers = plant_numbers()
     geometry = numbers.geometry
     jp, jc, *_ = geometry.arrays
     scenario = Scenario(failures=[Failure(joint=7)], stop=Stop(time_limit_s=0.6))
     run = CompiledSession().simulate(scenario)
-    setup = model_setup({"lateral_friction_asymmetry": 0.2, "stribeck_ratio": 0.5, "head_drag_mu": 0.3,
-                         "joint_coulomb_Nm": 0.05, "wheel_toe_deg": 1.0})
+    setup = model_setup(
+        {
+            "lateral_friction_asymmetry": 0.2,
+            "stribeck_ratio": 0.5,
+            "head_drag_mu": 0.3,
+            "joint_coulomb_Nm": 0.05,
+            "wheel_toe_deg": 1.0,
+        }
+    )
     params = fr.friction_parameters(friction=scenario.friction, sgn_smoothing_m_s=0.01, setup=setup, geometry=geometry)
     params[fr.FAILED][6] = fr.FREE
     rng = np.random.default_rng(2)
@@ -95,12 +103,15 @@ def test_friction_tangent_matches_central_differences_of_the_solve():
     base = v_plus(x, params, command)
     M, bias, _ = chain_terms(x, mass, inertia, com, jp, jc, 0j)
     mw, dbias, _ = chain_tangent(x, dx, np.tile(base - x[16:], (count, 1)), mass, inertia, com, jp, jc, 0j)
-    tangent = friction_tangent(x, dx, dparams, dcommand, -dbias, mw, base, M, -bias, dt, params, command, power, gains,
-                               *geometry.arrays)
+    tangent = friction_tangent(
+        x, dx, dparams, dcommand, -dbias, mw, base, M, -bias, dt, params, command, power, gains, *geometry.arrays
+    )
     h = 1e-5
     for d in range(count):
-        expected = (v_plus(x + h * dx[d], params + h * dparams[d], command + h * dcommand[d])
-                    - v_plus(x - h * dx[d], params - h * dparams[d], command - h * dcommand[d])) / (2 * h)
+        expected = (
+            v_plus(x + h * dx[d], params + h * dparams[d], command + h * dcommand[d])
+            - v_plus(x - h * dx[d], params - h * dparams[d], command - h * dcommand[d])
+        ) / (2 * h)
         scale = np.abs(expected).max()
         assert scale > 1e-6, d  # the direction moves the step
         np.testing.assert_allclose(tangent[d], expected, atol=1e-3 * scale, err_msg=f"direction {d}")
@@ -124,32 +135,48 @@ def test_run_sensitivities_match_central_differences_of_whole_runs():
     from rc1_drake.measurements import load_trial
     from rc1_drake.replay import Replayer, replay_scenario
 
-    effects = {"lateral_friction_asymmetry": 0.1, "longitudinal_friction_asymmetry": -0.1, "stribeck_ratio": 0.3,
-               "head_drag_mu": 0.1, "joint_coulomb_Nm": 0.02, "wheel_toe_deg": 0.5}
+    effects = {
+        "lateral_friction_asymmetry": 0.1,
+        "longitudinal_friction_asymmetry": -0.1,
+        "stribeck_ratio": 0.3,
+        "head_drag_mu": 0.1,
+        "joint_coulomb_Nm": 0.02,
+        "wheel_toe_deg": 0.5,
+    }
 
     def varied(scenario, name, h):
         if name in FRICTION_NAMES:
-            return dataclasses.replace(scenario, friction=dataclasses.replace(
-                scenario.friction, **{name: getattr(scenario.friction, name) + h}))
+            return dataclasses.replace(
+                scenario,
+                friction=dataclasses.replace(scenario.friction, **{name: getattr(scenario.friction, name) + h}),
+            )
         return dataclasses.replace(scenario, effects=shifted(scenario.effects, name, h))
 
     session = CompiledSession()
-    run_scenario = Scenario(failures=[Failure(joint=7)], stop=Stop(time_limit_s=0.3),
-                            effects={**effects, "ground_slope_deg": 2.0, "ground_slope_direction_deg": 30.0})
+    run_scenario = Scenario(
+        failures=[Failure(joint=7)],
+        stop=Stop(time_limit_s=0.3),
+        effects={**effects, "ground_slope_deg": 2.0, "ground_slope_direction_deg": 30.0},
+    )
     trial = first_seconds(load_trial("data/paper_campaign/j2_1.json"), 0.6)
     replayer = Replayer(trial, engine="compiled")
     replay = replay_scenario(trial, run_scenario.friction, effects, replayer.numerics)
     every = [n for n in sensitivity_parameters() if not n.startswith("start_")]  # below: the start's own test
     assert {"mu_lat", "wheel_toe_deg", "ground_slope_x_deg", "ground_slope_direction_deg"} <= set(every)
-    cases = [(lambda s, **kw: session.simulate(s, **kw), run_scenario, every),
-             # on a level floor the slope's direction does nothing
-             (lambda s, **kw: replayer.session.simulate(s, initial=replayer.initial, **kw), replay,
-              [n for n in every if n != "ground_slope_direction_deg"])]
+    cases = [
+        (lambda s, **kw: session.simulate(s, **kw), run_scenario, every),
+        # on a level floor the slope's direction does nothing
+        (
+            lambda s, **kw: replayer.session.simulate(s, initial=replayer.initial, **kw),
+            replay,
+            [n for n in every if n != "ground_slope_direction_deg"],
+        ),
+    ]
     for simulate, scenario, names in cases:
         exact = simulate(scenario, sensitivities=names)
         assert exact.sensitivity.shape == (len(exact.t), len(names), 32)
         for p, name in enumerate(names):
-            expected = _central(simulate, lambda n, h: varied(scenario, n, h), name)
+            expected = _central(simulate, lambda n, h, scenario=scenario: varied(scenario, n, h), name)
             scale = np.abs(expected).max()
             assert scale > 1e-4, name  # not trivially zero
             np.testing.assert_allclose(exact.sensitivity[-1, p], expected, atol=1e-4 * scale, err_msg=name)
@@ -200,8 +227,13 @@ def test_sensitivities_at_a_stop_event_follow_the_moving_stop_time(rule):
             up, down = ({**scenario.effects, name: scenario.effects[name] + d} for d in (h, -h))
             up, down = (dataclasses.replace(scenario, effects=e) for e in (up, down))
         else:
-            up, down = (dataclasses.replace(scenario, friction=dataclasses.replace(
-                scenario.friction, **{name: getattr(scenario.friction, name) + d})) for d in (h, -h))
+            up, down = (
+                dataclasses.replace(
+                    scenario,
+                    friction=dataclasses.replace(scenario.friction, **{name: getattr(scenario.friction, name) + d}),
+                )
+                for d in (h, -h)
+            )
         expected = (at_event(up) - at_event(down))[:16] / (2 * h)
         assert abs(expected[coordinate]) < 1e-6 * np.abs(expected).max()  # the stop rule's coordinate is fixed
         np.testing.assert_allclose(exact[p, :16], expected, atol=1e-3 * np.abs(expected).max(), err_msg=name)
@@ -221,7 +253,9 @@ def test_sensitivities_by_the_start_rates_match_central_differences():
     for p, index in enumerate(START_RATES.values()):
         shift = np.zeros(32)
         shift[index] = h
-        expected = (session.simulate(scenario, initial=x0 + shift).state[-1]
-                    - session.simulate(scenario, initial=x0 - shift).state[-1]) / (2 * h)
+        expected = (
+            session.simulate(scenario, initial=x0 + shift).state[-1]
+            - session.simulate(scenario, initial=x0 - shift).state[-1]
+        ) / (2 * h)
         assert np.abs(expected).max() > 1e-2
         np.testing.assert_allclose(exact[p], expected, atol=1e-4 * np.abs(expected).max())

@@ -51,5 +51,14 @@ from .report import Diagnosis
 from .thresholds import THRESHOLDS, Thresholds
 from .verdict import Verdict
 
-__all__ = ["INPUT_NOISE_SAMPLES", "MAX_ROUNDS", "THRESHOLDS", "Diagnosis", "Thresholds", "Verdict", "diagnose",
-           "probe_visibility", "replay_error"]
+__all__ = [
+    "INPUT_NOISE_SAMPLES",
+    "MAX_ROUNDS",
+    "THRESHOLDS",
+    "Diagnosis",
+    "Thresholds",
+    "Verdict",
+    "diagnose",
+    "probe_visibility",
+    "replay_error",
+]

@@ -2,7 +2,6 @@
 effect, or one of a trial's start rates), and the model or trials they set."""
 
 import dataclasses
-from typing import Dict, List, Optional
 
 from ..config import Friction
 from ..effects import LIBRARY, effect_values
@@ -30,10 +29,10 @@ class Coordinate:
     lower: float
     upper: float
     step: float
-    start_of: Optional[tuple] = None  # a START coordinate's (trial index, index in START_NAMES)
+    start_of: tuple | None = None  # a START coordinate's (trial index, index in START_NAMES)
 
 
-def friction_coordinates(friction: Friction, held=()) -> List[Coordinate]:
+def friction_coordinates(friction: Friction, held=()) -> list[Coordinate]:
     out = []
     for p in [p for p in DEFAULT_PARAMETERS if p.name not in held]:
         value = getattr(friction, p.name)
@@ -41,21 +40,27 @@ def friction_coordinates(friction: Friction, held=()) -> List[Coordinate]:
     return out
 
 
-def effect_coordinates(name: str, effects: Dict[str, float]) -> List[Coordinate]:
+def effect_coordinates(name: str, effects: dict[str, float]) -> list[Coordinate]:
     effect = LIBRARY[name]
     values = effect.coordinates(effect_values(effects, effect))
-    return [Coordinate(p.key, name, float(values[p.key]), min(p.lower, values[p.key]), max(p.upper, values[p.key]),
-                       p.probe_step) for p in effect.coordinate_space()]
+    return [
+        Coordinate(
+            p.key, name, float(values[p.key]), min(p.lower, values[p.key]), max(p.upper, values[p.key]), p.probe_step
+        )
+        for p in effect.coordinate_space()
+    ]
 
 
-def start_coordinates(trials) -> List[Coordinate]:
+def start_coordinates(trials) -> list[Coordinate]:
     """Each trial's head rates at t = 0 (Trial.initial_head_rates, which must be set) as three coordinates."""
-    return [Coordinate(f"{t.trial_id}:{name}", START, float(t.initial_head_rates[i]), -bound, bound, step, (k, i))
-            for k, t in enumerate(trials)
-            for i, (name, step, bound) in enumerate(zip(START_NAMES, START_STEPS, START_BOUNDS, strict=True))]
+    return [
+        Coordinate(f"{t.trial_id}:{name}", START, float(t.initial_head_rates[i]), -bound, bound, step, (k, i))
+        for k, t in enumerate(trials)
+        for i, (name, step, bound) in enumerate(zip(START_NAMES, START_STEPS, START_BOUNDS, strict=True))
+    ]
 
 
-def starts_at(trials, coordinates: List[Coordinate], values) -> list:
+def starts_at(trials, coordinates: list[Coordinate], values) -> list:
     """`trials` with their START coordinates among `coordinates` set to `values`."""
     out = list(trials)
     for c, v in zip(coordinates, values, strict=True):
@@ -67,16 +72,17 @@ def starts_at(trials, coordinates: List[Coordinate], values) -> list:
     return out
 
 
-def physics_names(lin, names) -> List[str]:
+def physics_names(lin, names) -> list[str]:
     """`names` without the trials' start coordinates: the model's parameters (what the misfit's dof count)."""
     return [n for n in names if lin.coordinate(n).owner != START]
 
 
-def model_at(friction: Friction, effects: Dict[str, float], coordinates: List[Coordinate], values) -> tuple:
+def model_at(friction: Friction, effects: dict[str, float], coordinates: list[Coordinate], values) -> tuple:
     """(friction, effects) with the coordinates set to `values` (effects written back through their classes;
     START coordinates belong to the trials: starts_at)."""
-    friction = dataclasses.replace(friction, **{c.name: float(v) for c, v in zip(coordinates, values, strict=True)
-                                                if c.owner == "friction"})
+    friction = dataclasses.replace(
+        friction, **{c.name: float(v) for c, v in zip(coordinates, values, strict=True) if c.owner == "friction"}
+    )
     effects = dict(effects)
     for owner in dict.fromkeys(c.owner for c in coordinates if c.owner not in ("friction", START)):
         effect = LIBRARY[owner]
@@ -86,7 +92,7 @@ def model_at(friction: Friction, effects: Dict[str, float], coordinates: List[Co
     return friction, effects
 
 
-def coordinate_values(coords, friction, effects, trials) -> List[float]:
+def coordinate_values(coords, friction, effects, trials) -> list[float]:
     values = []
     for c in coords:
         if c.owner == START:

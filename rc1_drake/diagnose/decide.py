@@ -1,8 +1,6 @@
 """Decide (stage 3): every candidate fitted beside today's model and scored on held-out trials (rank), the best
 checked by simulation, and the decision between accepting one, calling candidates alike, or a partial one."""
 
-from typing import List, Optional
-
 import numpy as np
 
 from ..config import FRICTION_NAMES
@@ -26,22 +24,37 @@ def held_out_by_simulation(lin: Linearization, fitted: Fit, evaluator: Evaluator
         jobs.append((starts_at(lin.trials, coords, values)[k], *model_at(lin.friction, lin.effects, coords, values)))
     out = evaluator.map(evaluate, jobs, f"held-out replays: {label}")
     _, effects = model_at(lin.friction, lin.effects, coords, fitted.values)
-    return score(lin, label, effects, [lin.corrected(k, o[0]) for k, o in enumerate(out)], [o[1] for o in out],
-                  [o[2] for o in out])
+    return score(
+        lin,
+        label,
+        effects,
+        [lin.corrected(k, o[0]) for k, o in enumerate(out)],
+        [o[1] for o in out],
+        [o[2] for o in out],
+    )
 
 
-def screen_friction(lin: Linearization, names=FRICTION_NAMES, max_relative_error=0.3, nuisance=()) -> List[str]:
+def screen_friction(lin: Linearization, names=FRICTION_NAMES, max_relative_error=0.3, nuisance=()) -> list[str]:
     """The friction coefficients these data identify (identify.screen's rule: standard error below 30%), fitted
     with the `nuisance` coordinates."""
     if not names:
         return []
     fitted = fit(lin, list(nuisance) + list(names))
-    return [n for n, v, se in zip(fitted.names, fitted.values, fitted.standard_errors, strict=True)
-            if n in names and se < max_relative_error * abs(v)]
+    return [
+        n
+        for n, v, se in zip(fitted.names, fitted.values, fitted.standard_errors, strict=True)
+        if n in names and se < max_relative_error * abs(v)
+    ]
 
 
-def rank(lin: Linearization, base: Fit, model_names: List[str], names: List[str],
-         reference: Optional[Fit] = None, thresholds: Thresholds = THRESHOLDS) -> List[CandidateResult]:
+def rank(
+    lin: Linearization,
+    base: Fit,
+    model_names: list[str],
+    names: list[str],
+    reference: Fit | None = None,
+    thresholds: Thresholds = THRESHOLDS,
+) -> list[CandidateResult]:
     """Every candidate fitted with today's model's free parameters, scored on held-out trials (linear)
     against `reference` (today's model without the candidates; `base` by default)."""
     reference = reference or base
@@ -64,8 +77,10 @@ def rank(lin: Linearization, base: Fit, model_names: List[str], names: List[str]
         p = wald_p(fitted, own)
         reduction = 1.0 - (after / before) ** 2 if before > 0 else 0.0
         detectable = {n: 3.0 * se[n] for n in own}
-        visible = any(3.0 * se[n] < max(abs(c.lower), abs(c.upper)) for n, c in zip(own, coords, strict=True)) and \
-            np.linalg.norm(projected[name]) > 1e-9
+        visible = (
+            any(3.0 * se[n] < max(abs(c.lower), abs(c.upper)) for n, c in zip(own, coords, strict=True))
+            and np.linalg.norm(projected[name]) > 1e-9
+        )
         if not visible:
             status = "not detectable here"
         elif p >= thresholds.p_accept:
@@ -74,13 +89,23 @@ def rank(lin: Linearization, base: Fit, model_names: List[str], names: List[str]
             status = "no held-out gain"
         else:
             status = "candidate"
-        results.append(CandidateResult(
-            name=name, parameters=effect.from_coordinates(values),
-            coordinates={n: [values[n], se[n]] for n in own},
-            interval95={n: interval95(values[n], se[n]) for n in own},
-            wald_p=p, held_out_before=before, held_out_after=after, held_out_reduction=reduction,
-            aic_delta=fitted.aic - reference.aic, score=reduction, status=status, detectable_strength=detectable,
-            visibility=visibility(lin, name)))
+        results.append(
+            CandidateResult(
+                name=name,
+                parameters=effect.from_coordinates(values),
+                coordinates={n: [values[n], se[n]] for n in own},
+                interval95={n: interval95(values[n], se[n]) for n in own},
+                wald_p=p,
+                held_out_before=before,
+                held_out_after=after,
+                held_out_reduction=reduction,
+                aic_delta=fitted.aic - reference.aic,
+                score=reduction,
+                status=status,
+                detectable_strength=detectable,
+                visibility=visibility(lin, name),
+            )
+        )
     for c in results:
         for other in results:
             if other is c or np.linalg.norm(projected[c.name]) < 1e-9 or np.linalg.norm(projected[other.name]) < 1e-9:
@@ -91,11 +116,13 @@ def rank(lin: Linearization, base: Fit, model_names: List[str], names: List[str]
     return results
 
 
-def decide(results: List[CandidateResult], thresholds: Thresholds = THRESHOLDS) -> tuple:
+def decide(results: list[CandidateResult], thresholds: Thresholds = THRESHOLDS) -> tuple:
     """From the candidates checked by simulation (`simulated` set): (the accepted one's name or None, the
     names that explain the held-out trials alike, the name of one that explains only part of it); sets
     every checked candidate's status and the accepted one's flag."""
-    helping = [c for c in results if c.simulated and c.simulated["held_out_reduction"] >= thresholds.min_held_out_reduction]
+    helping = [
+        c for c in results if c.simulated and c.simulated["held_out_reduction"] >= thresholds.min_held_out_reduction
+    ]
     helping.sort(key=lambda c: c.simulated["held_out_sum_of_squares_after"])
     for c in results:
         if c.simulated and c not in helping:
@@ -106,7 +133,9 @@ def decide(results: List[CandidateResult], thresholds: Thresholds = THRESHOLDS) 
     for c in others:
         c.status = "held-out gain, clearly less than the best one's"
     best_after = best.simulated["held_out_sum_of_squares_after"]
-    rivals = [c for c in others if c.simulated["held_out_sum_of_squares_after"] < thresholds.ambiguous_ratio * best_after]
+    rivals = [
+        c for c in others if c.simulated["held_out_sum_of_squares_after"] < thresholds.ambiguous_ratio * best_after
+    ]
     if rivals:
         # Two effects that explain the held-out trials alike: these trials cannot tell which it is.
         ambiguous = [best.name] + [c.name for c in rivals]
@@ -116,8 +145,10 @@ def decide(results: List[CandidateResult], thresholds: Thresholds = THRESHOLDS) 
     if best.simulated["held_out_reduction"] < thresholds.accept_held_out_reduction:
         # Significant and confirmed, but too weak a gain to name the effect: wrong effects accepted in a true
         # one's place gained 17-49% (Thresholds.accept_held_out_reduction).
-        best.status = (f"explains part of it ({100 * best.simulated['held_out_reduction']:.0f}% of the held-out "
-                       f"error; accepting needs half): not accepted")
+        best.status = (
+            f"explains part of it ({100 * best.simulated['held_out_reduction']:.0f}% of the held-out "
+            f"error; accepting needs half): not accepted"
+        )
         return None, [], best.name
     best.status, best.accepted = "accepted", True
     return best.name, [], None
@@ -126,10 +157,16 @@ def decide(results: List[CandidateResult], thresholds: Thresholds = THRESHOLDS) 
 def score(lin: Linearization, label: str, effects, corrected, eq6, yaw_fit) -> HeldOutScore:
     """Per-trial scores of one replay per trial of `lin`: its bias-corrected residuals, Eq. 6, yaw-rate fit."""
     ids = [t.trial_id for t in lin.trials]
-    return HeldOutScore(label=label, effects=effects, sum_of_squares=lin.weighted_sum_of_squares(corrected),
-                        eq6_pct=dict(zip(ids, eq6, strict=True)), yaw_fit_pct=dict(zip(ids, yaw_fit, strict=True)),
-                        eq6_without_miss_pct={i: lin.eq6_without_miss(k, r) for k, (i, r) in
-                                              enumerate(zip(ids, corrected, strict=True))})
+    return HeldOutScore(
+        label=label,
+        effects=effects,
+        sum_of_squares=lin.weighted_sum_of_squares(corrected),
+        eq6_pct=dict(zip(ids, eq6, strict=True)),
+        yaw_fit_pct=dict(zip(ids, yaw_fit, strict=True)),
+        eq6_without_miss_pct={
+            i: lin.eq6_without_miss(k, r) for k, (i, r) in enumerate(zip(ids, corrected, strict=True))
+        },
+    )
 
 
 def unrefitted(lin: Linearization, label: str) -> HeldOutScore:

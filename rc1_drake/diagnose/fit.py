@@ -4,7 +4,6 @@ predictions; and the model moved to a fit where simulation confirms it."""
 
 import dataclasses
 import math
-from typing import List
 
 import numpy as np
 
@@ -30,21 +29,21 @@ def bounded_least_squares(x, r, lower, upper) -> np.ndarray:
 
 @dataclasses.dataclass
 class Fit:
-    names: List[str]
+    names: list[str]
     values: np.ndarray  # coordinate values at the fit
     steps: np.ndarray  # d from the linearization point
     standard_errors: np.ndarray
     covariance: np.ndarray
-    residual: List[np.ndarray]  # per trial, r0 + X d (linear prediction, all trials)
-    held_out: List[np.ndarray]  # per trial, the prediction from the fit without that trial
-    held_out_steps: List[np.ndarray]  # per trial, d fitted without it
+    residual: list[np.ndarray]  # per trial, r0 + X d (linear prediction, all trials)
+    held_out: list[np.ndarray]  # per trial, the prediction from the fit without that trial
+    held_out_steps: list[np.ndarray]  # per trial, d fitted without it
     aic: float
 
     def held_out_sum_of_squares(self) -> float:
         return float(sum(float(h @ h) for h in self.held_out))
 
 
-def _own_start(coords, k: int) -> List[int]:
+def _own_start(coords, k: int) -> list[int]:
     """The indices among `coords` of trial k's own START coordinates."""
     return [i for i, c in enumerate(coords) if c.start_of is not None and c.start_of[0] == k]
 
@@ -68,10 +67,13 @@ def _profiled_rows(lin: Linearization, coords, trials) -> tuple:
         carry = None
         if own:
             w, big_w = _start_rows(lin, own + physics, k)
-            carry = lin.weights[k] * np.column_stack([lin.columns[c.name][k] for c in own]) @ np.linalg.pinv(
-                big_w[:, :len(own)])
-            r[start:start + n] -= carry @ w
-            x[start:start + n] -= carry @ big_w[:, len(own):]
+            carry = (
+                lin.weights[k]
+                * np.column_stack([lin.columns[c.name][k] for c in own])
+                @ np.linalg.pinv(big_w[:, : len(own)])
+            )
+            r[start : start + n] -= carry @ w
+            x[start : start + n] -= carry @ big_w[:, len(own) :]
         carries.append(carry)
         start += n
     return x, r, channels, counts, carries
@@ -106,7 +108,7 @@ def _start_rows_variance(lin: Linearization, coords, k: int, d) -> float:
     return float(e @ e) / max(len(e) - len(_own_start(coords, k)), 1)
 
 
-def fit(lin: Linearization, names: List[str]) -> Fit:
+def fit(lin: Linearization, names: list[str]) -> Fit:
     """Bounded weighted linear least squares over `names` (each trial's rows times its weight; a trial's
     start, where among them, fitted to its first START_FIT_S only: _solve), its covariance (the sandwich
     with channel variances and input noise, or the trial jackknife where that is larger), and
@@ -126,11 +128,11 @@ def fit(lin: Linearization, names: List[str]) -> Fit:
     middle = np.zeros_like(inv)
     start_variances, start = {}, 0
     for k, (n, carry) in enumerate(zip(counts, carries, strict=True)):
-        sigma = np.diag(variance[start:start + n]) + lin.weights[k] ** 2 * lin.noise[k]
+        sigma = np.diag(variance[start : start + n]) + lin.weights[k] ** 2 * lin.noise[k]
         if carry is not None:
             start_variances[k] = _start_rows_variance(lin, coords, k, d)
             sigma = sigma + start_variances[k] * carry @ carry.T
-        middle += x[start:start + n].T @ sigma @ x[start:start + n]
+        middle += x[start : start + n].T @ sigma @ x[start : start + n]
         start += n
     cov = np.zeros((len(names), len(names)))
     cov[np.ix_(physics, physics)] = inv @ middle @ inv
@@ -164,8 +166,17 @@ def fit(lin: Linearization, names: List[str]) -> Fit:
     se = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     m = len(e)
     aic = m * math.log(max(float(e @ e), 1e-300) / m) + 2 * len(names)
-    return Fit(names=list(names), values=np.array([c.value for c in coords]) + d, steps=d, standard_errors=se,
-               covariance=cov, residual=per_trial, held_out=held, held_out_steps=held_steps, aic=aic)
+    return Fit(
+        names=list(names),
+        values=np.array([c.value for c in coords]) + d,
+        steps=d,
+        standard_errors=se,
+        covariance=cov,
+        residual=per_trial,
+        held_out=held,
+        held_out_steps=held_steps,
+        aic=aic,
+    )
 
 
 POLISH_STEPS = 3  # Gauss-Newton steps on an accepted model, while simulation confirms them (polish)
@@ -174,7 +185,7 @@ POLISH_STEPS = 3  # Gauss-Newton steps on an accepted model, while simulation co
 POLISH_TOLERANCE = 0.5  # ... and while the accepted effect's step exceeds this many standard errors
 
 
-def polish(lin: Linearization, names: List[str], effect: str, evaluator, samples: int) -> tuple:
+def polish(lin: Linearization, names: list[str], effect: str, evaluator, samples: int) -> tuple:
     """The accepted model moved by Gauss-Newton steps over `names` (secant columns, each step within the trust
     region, the replay's own error measured again at each point with `samples` draws) while the replays there
     lower the weighted sum of squares and `effect`'s own step exceeds POLISH_TOLERANCE standard errors.
@@ -196,11 +207,11 @@ def polish(lin: Linearization, names: List[str], effect: str, evaluator, samples
     return lin, k
 
 
-def starts_fitted(lin: Linearization, nuisance: List[str], free: List[str], evaluator) -> Linearization:
+def starts_fitted(lin: Linearization, nuisance: list[str], free: list[str], evaluator) -> Linearization:
     """`lin` with the trials' starts (`nuisance`) fitted with today's free friction on all trials, where
     simulation confirms it on their start rows (the friction stays: the round's refit moves it)."""
     if not nuisance:
         return lin
     fitted = fit(lin, nuisance + free)
-    there = moved(lin, nuisance, fitted.values[:len(nuisance)], evaluator, what="the trials' starts fitted")
+    there = moved(lin, nuisance, fitted.values[: len(nuisance)], evaluator, what="the trials' starts fitted")
     return there if sum(w @ w for w in there.w0) < sum(w @ w for w in lin.w0) else lin  # what fixes them

@@ -3,7 +3,6 @@
 
 import dataclasses
 import math
-from typing import Dict, List, Optional
 
 import numpy as np
 
@@ -33,20 +32,20 @@ FINAL_SIGMA_M = RESIDUAL_SIGMAS["final_m"]
 class Linearization:
     trials: list
     friction: Friction
-    effects: Dict[str, float]
-    coordinates: List[Coordinate]  # every column's coordinate
-    r0: List[np.ndarray]  # per trial, at (friction, effects)
-    eq6: List[float]  # per trial, at (friction, effects)
-    yaw_fit: List[float]
-    columns: Dict[str, List[np.ndarray]]  # coordinate name -> per-trial d r / d coordinate
-    noise: List[np.ndarray]  # per trial: covariance of its residuals from the input noise (replay_error)
-    weights: Optional[np.ndarray] = None  # per trial (trial_weights of the noise, by default)
-    bias: Optional[List[np.ndarray]] = None  # per trial: the replay's own miss (replay_error), taken off r0
-    ends: Optional[List[float]] = None  # per trial: where its replay at (friction, effects) ended, s
+    effects: dict[str, float]
+    coordinates: list[Coordinate]  # every column's coordinate
+    r0: list[np.ndarray]  # per trial, at (friction, effects)
+    eq6: list[float]  # per trial, at (friction, effects)
+    yaw_fit: list[float]
+    columns: dict[str, list[np.ndarray]]  # coordinate name -> per-trial d r / d coordinate
+    noise: list[np.ndarray]  # per trial: covariance of its residuals from the input noise (replay_error)
+    weights: np.ndarray | None = None  # per trial (trial_weights of the noise, by default)
+    bias: list[np.ndarray] | None = None  # per trial: the replay's own miss (replay_error), taken off r0
+    ends: list[float] | None = None  # per trial: where its replay at (friction, effects) ended, s
     # per trial, the residuals of its first START_FIT_S (the rows that fix its start), and their columns
-    w0: Optional[List[np.ndarray]] = None
-    wcolumns: Optional[Dict[str, List[np.ndarray]]] = None
-    start_bias: Optional[List[np.ndarray]] = None  # per trial: the replay's own miss on its start rows
+    w0: list[np.ndarray] | None = None
+    wcolumns: dict[str, list[np.ndarray]] | None = None
+    start_bias: list[np.ndarray] | None = None  # per trial: the replay's own miss on its start rows
 
     def __post_init__(self):
         if self.weights is None:
@@ -56,8 +55,12 @@ class Linearization:
         """(X, r0, channels, per-trial row counts) over the `trials` indices; `weighted`: each trial's
         rows times its weight."""
         w = [self.weights[k] if weighted else 1.0 for k in trials]
-        x = np.vstack([w_k * np.column_stack([self.columns[n][k] for n in names]) if names else
-                       np.zeros((len(self.r0[k]), 0)) for k, w_k in zip(trials, w, strict=True)])
+        x = np.vstack(
+            [
+                w_k * np.column_stack([self.columns[n][k] for n in names]) if names else np.zeros((len(self.r0[k]), 0))
+                for k, w_k in zip(trials, w, strict=True)
+            ]
+        )
         r = np.concatenate([w_k * self.r0[k] for k, w_k in zip(trials, w, strict=True)])
         channels = np.concatenate([residual_channels(self.r0[k]) for k in trials])
         return x, r, channels, [len(self.r0[k]) for k in trials]
@@ -83,13 +86,14 @@ class Linearization:
         """Paper Eq. 6 of trial k from its bias-corrected residuals: the final position's error with the
         replay's own miss on this motion (replay_error) taken off, over the distance the head travelled."""
         trial = self.trials[k]
-        return simulator_error(trial.final_head_xy + FINAL_SIGMA_M * corrected[:2], trial.final_head_xy,
-                               trial.initial_head_pose[:2])
+        return simulator_error(
+            trial.final_head_xy + FINAL_SIGMA_M * corrected[:2], trial.final_head_xy, trial.initial_head_pose[:2]
+        )
 
-    def weighted_rms(self, residuals: List[np.ndarray]) -> float:
+    def weighted_rms(self, residuals: list[np.ndarray]) -> float:
         return float(math.sqrt(self.weighted_sum_of_squares(residuals) / sum(len(r) for r in residuals)))
 
-    def weighted_sum_of_squares(self, residuals: List[np.ndarray]) -> float:
+    def weighted_sum_of_squares(self, residuals: list[np.ndarray]) -> float:
         return float(sum(w * w * float(r @ r) for w, r in zip(self.weights, residuals, strict=True)))
 
     def coordinate(self, name) -> Coordinate:
@@ -105,16 +109,26 @@ def trial_weights(trials, noise) -> np.ndarray:
     return np.array([1.0 / math.sqrt(1.0 + variance[t.case]) for t in trials])
 
 
-def pooled_per_case(trials, values) -> Dict[str, float]:
+def pooled_per_case(trials, values) -> dict[str, float]:
     """Per case: the mean of its trials' `values` (one trial's few bootstrap replays are too few to trust)."""
-    pooled: Dict[str, list] = {}
+    pooled: dict[str, list] = {}
     for trial, value in zip(trials, values, strict=True):
         pooled.setdefault(trial.case, []).append(value)
     return {case: float(np.mean(v)) for case, v in pooled.items()}
 
 
-def linearize(trials, friction, effects, candidates: List[str], evaluator: Evaluator, *, noise=None,
-              input_noise_samples=INPUT_NOISE_SAMPLES, held=(), starts=False) -> Linearization:
+def linearize(
+    trials,
+    friction,
+    effects,
+    candidates: list[str],
+    evaluator: Evaluator,
+    *,
+    noise=None,
+    input_noise_samples=INPUT_NOISE_SAMPLES,
+    held=(),
+    starts=False,
+) -> Linearization:
     """Residuals at (friction, effects) and their forward-difference columns for the friction
     coefficients, the model's own effects and the candidates (and with `starts`, each trial's start:
     start_coordinates); when `noise` is None, the replays' own error (replay_error: their bias, taken off r0,
@@ -138,8 +152,9 @@ def linearize(trials, friction, effects, candidates: List[str], evaluator: Evalu
     outputs = evaluator.map(evaluate, jobs, f"linearizing at the model ({len(coords)} directions)")
     bias = start_bias = None
     if noise is None:
-        bias, noise, start_bias = replay_errors(trials, friction, effects, [b[3] for b in base], [len(b[0]) for b in base],
-                                     evaluator, input_noise_samples)
+        bias, noise, start_bias = replay_errors(
+            trials, friction, effects, [b[3] for b in base], [len(b[0]) for b in base], evaluator, input_noise_samples
+        )
     columns = {c.name: [np.zeros(len(b[0])) for b in base] for c in coords}
     wcolumns = {c.name: [np.zeros(len(b[4])) for b in base] for c in coords}
     for (name, k), o in zip(where, outputs, strict=True):
@@ -148,10 +163,22 @@ def linearize(trials, friction, effects, candidates: List[str], evaluator: Evalu
             columns[name][k] = (o[0] - base[k][0]) / step
         if len(o[4]) == len(base[k][4]):
             wcolumns[name][k] = (o[4] - base[k][4]) / step
-    lin = Linearization(trials=list(trials), friction=friction, effects=dict(effects), coordinates=coords,
-                        r0=[b[0] for b in base], eq6=[b[1] for b in base], yaw_fit=[b[2] for b in base],
-                        columns=columns, noise=list(noise), bias=bias, ends=[b[3] for b in base],
-                        w0=[b[4] for b in base], wcolumns=wcolumns, start_bias=start_bias)
+    lin = Linearization(
+        trials=list(trials),
+        friction=friction,
+        effects=dict(effects),
+        coordinates=coords,
+        r0=[b[0] for b in base],
+        eq6=[b[1] for b in base],
+        yaw_fit=[b[2] for b in base],
+        columns=columns,
+        noise=list(noise),
+        bias=bias,
+        ends=[b[3] for b in base],
+        w0=[b[4] for b in base],
+        wcolumns=wcolumns,
+        start_bias=start_bias,
+    )
     lin.r0 = [lin.corrected(k, r) for k, r in enumerate(lin.r0)]
     lin.w0 = [lin.start_corrected(k, w) for k, w in enumerate(lin.w0)]
     return lin
@@ -161,13 +188,21 @@ def replay_errors(trials, friction, effects, ends, lengths, evaluator: Evaluator
     """Per trial, the replay's bias (None where the bootstrap does not line up with the trial's residuals of
     `lengths`), its input-noise covariance (replay_error) and the bias of its start rows, at (friction, effects)."""
     # Twins first, then every draw a job of its own: a campaign of a few trials keeps every core busy.
-    twins = evaluator.map(bootstrap_twin, [(t, friction, effects, end) for t, end in zip(trials, ends, strict=True)],
-                          "the replays' own error: noise-free twins")
-    jobs = [(*made, friction, effects, end, k, i) for k, (made, end) in enumerate(zip(twins, ends, strict=True))
-            if made is not None for i in range(samples)]
+    twins = evaluator.map(
+        bootstrap_twin,
+        [(t, friction, effects, end) for t, end in zip(trials, ends, strict=True)],
+        "the replays' own error: noise-free twins",
+    )
+    jobs = [
+        (*made, friction, effects, end, k, i)
+        for k, (made, end) in enumerate(zip(twins, ends, strict=True))
+        if made is not None
+        for i in range(samples)
+    ]
     draws = iter(evaluator.map(bootstrap_draw, jobs, "the replays' own error: the twins replayed with noisy angles"))
-    errors = [None if made is None else draws_mean_and_covariance([next(draws) for _ in range(samples)])
-              for made in twins]
+    errors = [
+        None if made is None else draws_mean_and_covariance([next(draws) for _ in range(samples)]) for made in twins
+    ]
     bias, noise, start_bias = [], [], []
     for error, n in zip(errors, lengths, strict=True):
         start_bias.append(None if error is None else error[2])
@@ -184,32 +219,46 @@ def replay_errors(trials, friction, effects, ends, lengths, evaluator: Evaluator
 def with_replay_error(lin: Linearization, evaluator: Evaluator, samples: int) -> Linearization:
     """`lin` with the replay's bias and input noise measured again at its model (their residuals moved
     from the old bias to the new one, the trial weights recomputed)."""
-    bias, noise, start_bias = replay_errors(lin.trials, lin.friction, lin.effects, lin.ends,
-                                             [len(r) for r in lin.r0], evaluator, samples)
-    r0 = [r + _moved_bias(before, after, r) for r, before, after in zip(lin.r0, lin.bias or [None] * len(lin.r0), bias,
-                                                                         strict=True)]
-    w0 = [w + _moved_bias(before, after, w) for w, before, after in zip(
-        lin.w0, lin.start_bias or [None] * len(lin.w0), start_bias, strict=True)]
-    return dataclasses.replace(lin, r0=r0, bias=bias, noise=noise, weights=trial_weights(lin.trials, noise), w0=w0,
-                               start_bias=start_bias)
+    bias, noise, start_bias = replay_errors(
+        lin.trials, lin.friction, lin.effects, lin.ends, [len(r) for r in lin.r0], evaluator, samples
+    )
+    r0 = [
+        r + _moved_bias(before, after, r)
+        for r, before, after in zip(lin.r0, lin.bias or [None] * len(lin.r0), bias, strict=True)
+    ]
+    w0 = [
+        w + _moved_bias(before, after, w)
+        for w, before, after in zip(lin.w0, lin.start_bias or [None] * len(lin.w0), start_bias, strict=True)
+    ]
+    return dataclasses.replace(
+        lin, r0=r0, bias=bias, noise=noise, weights=trial_weights(lin.trials, noise), w0=w0, start_bias=start_bias
+    )
 
 
 def _moved_bias(before, after, residual) -> np.ndarray:
     """What moves a residual from one replay bias taken off to another (None: none taken off, or not lined up)."""
+
     def taken(bias):
         return 0.0 if bias is None or len(bias) != len(residual) else bias
+
     return taken(before) - taken(after)
 
 
-def moved(lin: Linearization, names: List[str], values, evaluator, **kwargs) -> Linearization:
+def moved(lin: Linearization, names: list[str], values, evaluator, **kwargs) -> Linearization:
     """`lin` relinearized (relinearize) where the coordinates `names` take `values` (starts included)."""
     coords = [lin.coordinate(n) for n in names]
-    return relinearize(lin, *model_at(lin.friction, lin.effects, coords, values), evaluator,
-                        trials=starts_at(lin.trials, coords, values), **kwargs)
+    return relinearize(
+        lin,
+        *model_at(lin.friction, lin.effects, coords, values),
+        evaluator,
+        trials=starts_at(lin.trials, coords, values),
+        **kwargs,
+    )
 
 
-def relinearize(lin: Linearization, friction, effects, evaluator, what="residuals at the new model",
-                 samples=0, trials=None) -> Linearization:
+def relinearize(
+    lin: Linearization, friction, effects, evaluator, what="residuals at the new model", samples=0, trials=None
+) -> Linearization:
     """The residuals at the new model; the columns updated by Broyden's rank-one secant update along the
     step (no replays: the columns of the coordinates that moved become secants through both points, so
     a nonlinear response is followed); the replay's bias and input noise reused, or with `samples`
@@ -221,15 +270,17 @@ def relinearize(lin: Linearization, friction, effects, evaluator, what="residual
     stays = [len(o[0]) != len(r) for o, r in zip(out, lin.r0, strict=True)]
     target = lin
     if samples:
-        bias, noise, start_bias = replay_errors(trials, friction, effects, [o[3] for o in out],
-                                                 [len(o[0]) for o in out], evaluator, samples)
+        bias, noise, start_bias = replay_errors(
+            trials, friction, effects, [o[3] for o in out], [len(o[0]) for o in out], evaluator, samples
+        )
         old = lin.bias or [None] * len(stays)
         old_start = lin.start_bias or [None] * len(stays)
         bias = [old[k] if s else b for k, (s, b) in enumerate(zip(stays, bias, strict=True))]
         start_bias = [old_start[k] if s else b for k, (s, b) in enumerate(zip(stays, start_bias, strict=True))]
         noise = [lin.noise[k] if s else n for k, (s, n) in enumerate(zip(stays, noise, strict=True))]
-        target = dataclasses.replace(lin, bias=bias, noise=noise, weights=trial_weights(lin.trials, noise),
-                                     start_bias=start_bias)
+        target = dataclasses.replace(
+            lin, bias=bias, noise=noise, weights=trial_weights(lin.trials, noise), start_bias=start_bias
+        )
     values = coordinate_values(lin.coordinates, friction, effects, trials)
     step = np.array(values) - np.array([c.value for c in lin.coordinates])
     names = [c.name for c in lin.coordinates]
@@ -253,22 +304,35 @@ def relinearize(lin: Linearization, friction, effects, evaluator, what="residual
                 for j, n in enumerate(names):
                     cols[n][k] = jacobian[:, j]
     coords = [dataclasses.replace(c, value=v) for c, v in zip(lin.coordinates, values, strict=True)]
-    return dataclasses.replace(target, trials=trials, friction=friction, effects=dict(effects), coordinates=coords,
-                               r0=r0, columns=columns, eq6=[o[1] for o in out], yaw_fit=[o[2] for o in out], ends=ends,
-                               w0=w0, wcolumns=wcolumns)
+    return dataclasses.replace(
+        target,
+        trials=trials,
+        friction=friction,
+        effects=dict(effects),
+        coordinates=coords,
+        r0=r0,
+        columns=columns,
+        eq6=[o[1] for o in out],
+        yaw_fit=[o[2] for o in out],
+        ends=ends,
+        w0=w0,
+        wcolumns=wcolumns,
+    )
 
 
-def visibility(lin: Linearization, name: str) -> Dict[str, Dict[str, float]]:
+def visibility(lin: Linearization, name: str) -> dict[str, dict[str, float]]:
     """Per case: how much the final position (cm) and the path or yaw-rate channel (standardized RMS)
     change per probe step of each of the candidate's coordinates, averaged over the case's trials."""
-    out: Dict[str, Dict[str, float]] = {}
+    out: dict[str, dict[str, float]] = {}
     for c in [c for c in lin.coordinates if c.owner == name]:
         for case in dict.fromkeys(t.case for t in lin.trials):
             ks = [k for k, t in enumerate(lin.trials) if t.case == case]
             cols = [lin.columns[c.name][k] * c.step for k in ks]
             row = out.setdefault(case, {})
             row[f"{c.name}: final position cm per {c.step:g}"] = float(
-                np.mean([100 * FINAL_SIGMA_M * np.linalg.norm(col[:2]) for col in cols]))
+                np.mean([100 * FINAL_SIGMA_M * np.linalg.norm(col[:2]) for col in cols])
+            )
             row[f"{c.name}: path rms (standardized) per {c.step:g}"] = float(
-                np.mean([np.sqrt(np.mean(col[2:] ** 2)) if len(col) > 2 else 0.0 for col in cols]))
+                np.mean([np.sqrt(np.mean(col[2:] ** 2)) if len(col) > 2 else 0.0 for col in cols])
+            )
     return out

@@ -4,7 +4,6 @@ while what is left is not the noise; then the verdict."""
 import dataclasses
 import os
 import time
-from typing import Dict, List, Optional
 
 from ..compare import CampaignReport
 from ..config import FRICTION_NAMES, START_MODES, Friction
@@ -29,10 +28,24 @@ REFINED_CANDIDATES = 3  # the best candidates by the linear ranking, refined by 
 CHECKED_CANDIDATES = 2  # of those, the best significant ones checked by simulation on held-out trials
 
 
-def diagnose(campaign, *, friction: Optional[Friction] = None, effects=None, candidates=None, trials=None,
-             held=(), workers=None, scheduler=None, input_noise_samples=INPUT_NOISE_SAMPLES, max_rounds=MAX_ROUNDS,
-             probe_study=True, progress=None, start_rates="rest", thresholds: Thresholds = THRESHOLDS,
-             checkpoint=None) -> Diagnosis:
+def diagnose(
+    campaign,
+    *,
+    friction: Friction | None = None,
+    effects=None,
+    candidates=None,
+    trials=None,
+    held=(),
+    workers=None,
+    scheduler=None,
+    input_noise_samples=INPUT_NOISE_SAMPLES,
+    max_rounds=MAX_ROUNDS,
+    probe_study=True,
+    progress=None,
+    start_rates="rest",
+    thresholds: Thresholds = THRESHOLDS,
+    checkpoint=None,
+) -> Diagnosis:
     """The loop (the package's docstring) on `campaign` (its `trials`, all by default), from the model (`friction`,
     `effects`); `candidates` are effect names or groups (effects.candidate_names; by default the physical effects,
     and the potentiometer faults of joints whose readings pass their limit); the friction coefficients named in
@@ -44,33 +57,31 @@ def diagnose(campaign, *, friction: Optional[Friction] = None, effects=None, can
     if start_rates not in START_MODES:
         raise ValueError(f"start_rates must be one of {START_MODES}, got {start_rates!r}")
     friction, effects, chosen = friction or Friction(), dict(effects or {}), campaign.chosen(trials)
-    replayed, not_detectable = _candidates(chosen, effects, candidates)
+    replayed, unseen = _candidates(chosen, effects, candidates)
     with make_executor(workers=workers or min(os.cpu_count() or 1, len(chosen)), scheduler=scheduler) as executor:
         evaluator = Evaluator(executor, progress, Checkpoint(checkpoint) if checkpoint else None)
-        lin = linearize(chosen, friction, effects, replayed, evaluator, input_noise_samples=input_noise_samples,
-                        held=held, starts=start_rates == "fit")
+        fit_starts = start_rates == "fit"
+        lin = linearize(
+            chosen,
+            friction,
+            effects,
+            replayed,
+            evaluator,
+            input_noise_samples=input_noise_samples,
+            held=held,
+            starts=fit_starts,
+        )
         search = _Search.begin(lin, evaluator, chosen, replayed, held, input_noise_samples, thresholds)
         search.stop_reason = f"{max_rounds} rounds"
         for index in range(max_rounds):
             if not search.round(index):
                 break
-        report, where, left, final = search.finish(campaign)
-    for c in (c for r in search.rounds for c in r.candidates if c.status == "not detectable here"):
-        if c.name not in [d["name"] for d in not_detectable]:
-            not_detectable.append({"name": c.name, "reason": "its largest physical value would not be significant on "
-                                   "these trials", "experiment": c.experiment})
+        result, left = search.finish(campaign, friction, effects, unseen)
     if probe_study:
-        suggest_experiments(search.rounds, not_detectable, search.lin.friction, search.lin.effects, workers, progress)
-    found, explanation = verdict(search.accepted, left, search.rounds)
-    return Diagnosis(campaign=str(campaign.path), start_friction=friction, start_effects=effects, free=search.free,
-                     rounds=search.rounds, waterfall=search.waterfall, friction=search.lin.friction,
-                     effects=search.lin.effects, accepted=search.accepted, verdict=found, explanation=explanation,
-                     misfit_p=left.p, unexplained_trials=left.outliers, not_detectable=not_detectable,
-                     where_it_fails=where, simulations=evaluator.simulations, wall_s=time.perf_counter() - started,
-                     resumed=evaluator.checkpoint.resumed if evaluator.checkpoint else 0,
-                     trials=search.lin.trials, report=report, stop_reason=search.stop_reason,
-                     final_coordinates={n: v for n, v in final.items() if n not in search.nuisance},
-                     starts={n: v for n, v in final.items() if n in search.nuisance})
+        suggest_experiments(result.rounds, result.not_detectable, result.friction, result.effects, workers, progress)
+    result.verdict, result.explanation = verdict(result.accepted, left, result.rounds)
+    result.wall_s = time.perf_counter() - started
+    return result
 
 
 def _candidates(trials, effects, candidates) -> tuple:
@@ -78,9 +89,16 @@ def _candidates(trials, effects, candidates) -> tuple:
     names = candidate_names(candidates)
     if candidates is None:  # readings past a joint's limit point at its potentiometer (measurements.limit_warnings)
         names += potentiometer_faults(sorted({j for t in trials for j in t.beyond_limit}))
-    unseen = [{"name": n, "reason": "replays follow the measured joint angles, which already contain it",
-               "experiment": "runs driven by the gait command (rc1 run), compared with the measured joint angles: "
-               "the servo channel"} for n in names if not LIBRARY[n].seen_in_replay]
+    unseen = [
+        {
+            "name": n,
+            "reason": "replays follow the measured joint angles, which already contain it",
+            "experiment": "runs driven by the gait command (rc1 run), compared with the measured joint angles: "
+            "the servo channel",
+        }
+        for n in names
+        if not LIBRARY[n].seen_in_replay
+    ]
     in_model = [e.name for e in active(effects)]
     return [n for n in names if LIBRARY[n].seen_in_replay and n not in in_model], unseen
 
@@ -92,15 +110,15 @@ class _Search:
     lin: Linearization
     evaluator: Evaluator
     trials: list  # the campaign's chosen trials
-    replayed: List[str]  # the candidates
-    nuisance: List[str]  # the trials' start coordinates
-    free: List[str]  # the friction coefficients these data identify
-    model_names: List[str]  # in every fit: the starts, the free friction, then the accepted effects' coordinates
+    replayed: list[str]  # the candidates
+    nuisance: list[str]  # the trials' start coordinates
+    free: list[str]  # the friction coefficients these data identify
+    model_names: list[str]  # in every fit: the starts, the free friction, then the accepted effects' coordinates
     samples: int  # bootstrap replays per trial for the replay's own error
     thresholds: Thresholds
-    waterfall: List[dict]
-    accepted: List[str] = dataclasses.field(default_factory=list)
-    rounds: List[Round] = dataclasses.field(default_factory=list)
+    waterfall: list[dict]
+    accepted: list[str] = dataclasses.field(default_factory=list)
+    rounds: list[Round] = dataclasses.field(default_factory=list)
     stop_reason: str = ""
 
     @classmethod
@@ -110,18 +128,37 @@ class _Search:
         free = screen_friction(lin, [n for n in FRICTION_NAMES if n not in held], nuisance=nuisance)
         lin = starts_fitted(lin, nuisance, free, evaluator)
         start = unrefitted(lin, "start (no refit)")
-        step = {"model": start.label, "effects": start.effects, "mean_eq6_error_pct": start.mean_eq6(),
-                "mean_eq6_without_replay_miss_pct": start.mean_eq6_without_miss(), "cases": start.by_case(trials)}
-        return cls(lin, evaluator, trials, replayed, nuisance, free, nuisance + list(free), samples, thresholds,
-                   waterfall=[step])
+        step = {
+            "model": start.label,
+            "effects": start.effects,
+            "mean_eq6_error_pct": start.mean_eq6(),
+            "mean_eq6_without_replay_miss_pct": start.mean_eq6_without_miss(),
+            "cases": start.by_case(trials),
+        }
+        return cls(
+            lin,
+            evaluator,
+            trials,
+            replayed,
+            nuisance,
+            free,
+            nuisance + list(free),
+            samples,
+            thresholds,
+            waterfall=[step],
+        )
 
     def label(self) -> str:
         return "today's model" if not self.accepted else "+ " + " + ".join(self.accepted)
 
     def round(self, index: int) -> bool:
         """One round: rank the candidates against today's model, accept one if it holds. Whether to go on."""
-        if index and misfit(self.lin, self.lin.r0, len(physics_names(self.lin, self.model_names)),
-                            self.thresholds).consistent:
+        if (
+            index
+            and misfit(
+                self.lin, self.lin.r0, len(physics_names(self.lin, self.model_names)), self.thresholds
+            ).consistent
+        ):
             # What the accepted effects leave is noise: searching it only finds false alarms (measured: head drag
             # accepted after a true toe, benchmarks/diagnosis.py).
             self.stop_reason = "what the accepted effects leave is consistent with the noise"
@@ -134,12 +171,27 @@ class _Search:
                 c.status = "significant, not checked (a better candidate was)"
         # The ranking: what simulation showed first (by its held-out gain), then the linear scores.
         results.sort(key=lambda c: (c.simulated is None, -(c.simulated or {}).get("held_out_reduction", c.score)))
-        self.rounds.append(Round(friction=self.lin.friction, effects=dict(self.lin.effects), baseline=baseline,
-                                 candidates=results, accepted=chosen, misfit_p=left.p, refit=refit_note,
-                                 ambiguous=ambiguous, partial=partial))
+        self.rounds.append(
+            Round(
+                friction=self.lin.friction,
+                effects=dict(self.lin.effects),
+                baseline=baseline,
+                candidates=results,
+                accepted=chosen,
+                misfit_p=left.p,
+                refit=refit_note,
+                ambiguous=ambiguous,
+                partial=partial,
+            )
+        )
         if chosen is None:
-            self.stop_reason = ("candidates these trials cannot tell apart" if ambiguous else
-                                f"{partial} explains only part of it" if partial else "no candidate accepted")
+            self.stop_reason = (
+                "candidates these trials cannot tell apart"
+                if ambiguous
+                else f"{partial} explains only part of it"
+                if partial
+                else "no candidate accepted"
+            )
             return False
         self._accept(*checked[chosen])
         return True
@@ -157,21 +209,33 @@ class _Search:
             self.waterfall.append(waterfall_step("today's model, friction refitted", refit, self.trials))
         if refit.sum_of_squares >= current.sum_of_squares:
             # The linear step of a nonlinear (Coulomb) model can overshoot: keep what simulation rejects out.
-            return self.nuisance, current, (f"kept: refitting {', '.join(self.model_names)} raised the held-out sum "
-                                            f"of squares from {current.sum_of_squares:.4g} to {refit.sum_of_squares:.4g}")
+            return (
+                self.nuisance,
+                current,
+                (
+                    f"kept: refitting {', '.join(self.model_names)} raised the held-out sum "
+                    f"of squares from {current.sum_of_squares:.4g} to {refit.sum_of_squares:.4g}"
+                ),
+            )
         there = moved(lin, self.model_names, base_fit.values, self.evaluator)  # the refit on all trials
         if lin.weighted_sum_of_squares(there.r0) < current.sum_of_squares:
             self.lin = there
             return self.model_names, refit, "refitted"
-        return self.model_names, refit, "refitted for the held-out check; kept where it was (the all-trial refit did worse)"
+        return (
+            self.model_names,
+            refit,
+            "refitted for the held-out check; kept where it was (the all-trial refit did worse)",
+        )
 
-    def _candidates_checked(self, names: List[str], baseline) -> tuple:
+    def _candidates_checked(self, names: list[str], baseline) -> tuple:
         """(every candidate ranked, the best checked by simulation: name -> (result, score, fit, linearization),
         today's model's misfit)."""
         lin, evaluator, thresholds = self.lin, self.evaluator, self.thresholds
         base_fit = fit(lin, names)
         left = misfit(lin, base_fit.residual, len(physics_names(lin, names)), thresholds)
-        results = rank(lin, base_fit, names, [n for n in self.replayed if n not in self.accepted], thresholds=thresholds)
+        results = rank(
+            lin, base_fit, names, [n for n in self.replayed if n not in self.accepted], thresholds=thresholds
+        )
         # Refine the most promising candidates by one secant step: replay every trial at the candidate's linear fit
         # and update its columns (Broyden) there. A column taken at 0 misjudges effects seen at a clearly visible
         # strength (measured: a 0.5 head drag fitted at the 0.8 trust bound, not significant, and a tilt accepted
@@ -189,11 +253,13 @@ class _Search:
             at = refined[c.name][1]
             cand_fit = fit(at, names + [co.name for co in at.coordinates if co.owner == c.name])
             check = held_out_by_simulation(at, cand_fit, evaluator, f"{self.label()} + {c.name}")
-            c.simulated = {"held_out_sum_of_squares_before": baseline.sum_of_squares,
-                           "held_out_sum_of_squares_after": check.sum_of_squares,
-                           "held_out_reduction": 1.0 - check.sum_of_squares / baseline.sum_of_squares,
-                           "held_out_mean_eq6_pct_before": baseline.mean_eq6(),
-                           "held_out_mean_eq6_pct_after": check.mean_eq6()}
+            c.simulated = {
+                "held_out_sum_of_squares_before": baseline.sum_of_squares,
+                "held_out_sum_of_squares_after": check.sum_of_squares,
+                "held_out_reduction": 1.0 - check.sum_of_squares / baseline.sum_of_squares,
+                "held_out_mean_eq6_pct_before": baseline.mean_eq6(),
+                "held_out_mean_eq6_pct_after": check.mean_eq6(),
+            }
             checked[c.name] = (c, check, cand_fit, at)
         return results, checked, left
 
@@ -212,8 +278,11 @@ class _Search:
         accepted_at = {n: lin.coordinate(n).value for n in c.coordinates}
         lin, steps = polish(lin, self.model_names, c.name, self.evaluator, self.samples)
         here = fit(lin, self.model_names)  # the accepted effect's interval, the replay's error measured there
-        self.rounds[-1].polished = (f"{steps} Gauss-Newton step(s) from " + ", ".join(
-            f"{n}={v:.3g}" for n, v in accepted_at.items()) if steps else "no step: the accepted fit stands")
+        self.rounds[-1].polished = (
+            f"{steps} Gauss-Newton step(s) from " + ", ".join(f"{n}={v:.3g}" for n, v in accepted_at.items())
+            if steps
+            else "no step: the accepted fit stands"
+        )
         for n, se in zip(here.names, here.standard_errors, strict=True):
             if n in c.coordinates:
                 value = lin.coordinate(n).value
@@ -221,17 +290,60 @@ class _Search:
                 c.interval95[n] = interval95(value, float(se))
         self.lin = lin
 
-    def finish(self, campaign) -> tuple:
-        """(the final model's compare report, where it fails, its Misfit from its replays (not the linear
-        guess), its coordinates' [value, standard error]). The model is the last one checked by simulation."""
+    def finish(self, campaign, friction, effects, unseen: list[dict]) -> tuple:
+        """(the Diagnosis, its verdict and wall time to be set; the final model's Misfit from its replays, not the
+        linear guess). The model is the last one checked by simulation. `unseen`: the candidates no replay sees."""
         lin = self.lin
         final_fit = fit(lin, self.model_names)
-        out = self.evaluator.map(replay_and_score, [(t, lin.friction, lin.effects) for t in lin.trials],
-                                 "where the model fails", keep=False)  # whole runs: too large to keep
-        report = CampaignReport(campaign=str(campaign.path), friction=lin.friction, trials=[o[0] for o in out],
-                                runs={t.trial_id: o[1] for t, o in zip(lin.trials, out, strict=True)})
+        out = self.evaluator.map(
+            replay_and_score, [(t, lin.friction, lin.effects) for t in lin.trials], "where the model fails", keep=False
+        )  # whole runs: too large to keep
+        report = CampaignReport(
+            campaign=str(campaign.path),
+            friction=lin.friction,
+            trials=[o[0] for o in out],
+            runs={t.trial_id: o[1] for t, o in zip(lin.trials, out, strict=True)},
+        )
         simulated = [lin.corrected(k, trial_residual(t, report.runs[t.trial_id])) for k, t in enumerate(lin.trials)]
         left = misfit(lin, simulated, len(physics_names(lin, self.model_names)), self.thresholds)
-        final: Dict[str, list] = {n: [float(lin.coordinate(n).value), float(se)]
-                                  for n, se in zip(final_fit.names, final_fit.standard_errors, strict=True)}
-        return report, where_it_fails(report, campaign).to_json(), left, final
+        final = {
+            n: [float(lin.coordinate(n).value), float(se)]
+            for n, se in zip(final_fit.names, final_fit.standard_errors, strict=True)
+        }
+        not_detectable = list(unseen)
+        for c in (c for r in self.rounds for c in r.candidates if c.status == "not detectable here"):
+            if c.name not in [d["name"] for d in not_detectable]:
+                not_detectable.append(
+                    {
+                        "name": c.name,
+                        "experiment": c.experiment,
+                        "reason": "its largest physical value would not be significant on these trials",
+                    }
+                )
+        checkpoint = self.evaluator.checkpoint
+        result = Diagnosis(
+            campaign=str(campaign.path),
+            start_friction=friction,
+            start_effects=effects,
+            free=self.free,
+            rounds=self.rounds,
+            waterfall=self.waterfall,
+            friction=lin.friction,
+            effects=lin.effects,
+            accepted=self.accepted,
+            verdict=None,
+            explanation="",
+            misfit_p=left.p,
+            unexplained_trials=left.outliers,
+            not_detectable=not_detectable,
+            where_it_fails=where_it_fails(report, campaign).to_json(),
+            simulations=self.evaluator.simulations,
+            wall_s=0.0,
+            resumed=checkpoint.resumed if checkpoint else 0,
+            trials=lin.trials,
+            report=report,
+            stop_reason=self.stop_reason,
+            final_coordinates={n: v for n, v in final.items() if n not in self.nuisance},
+            starts={n: v for n, v in final.items() if n in self.nuisance},
+        )
+        return result, left

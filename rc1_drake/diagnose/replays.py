@@ -2,7 +2,6 @@
 the trial's noise-free twin, and the Evaluator that runs batches of them on an executor."""
 
 import dataclasses
-from typing import Optional
 
 import numpy as np
 
@@ -24,9 +23,13 @@ def evaluate(trial, friction, effects) -> tuple:
     t = trial.t - trial.t[0]
     inside = t <= run.t[-1] + 1e-9
     fit = fit_percent(trial.head_yaw_rate[inside], np.interp(t[inside], run.t, run.head_yaw_rate))
-    return (trial_residual(trial, run), simulator_error(run.head_xy[-1], trial.final_head_xy,
-                                                            trial.initial_head_pose[:2]), fit, float(run.t[-1]),
-            start_residual(trial, run, START_FIT_S))
+    return (
+        trial_residual(trial, run),
+        simulator_error(run.head_xy[-1], trial.final_head_xy, trial.initial_head_pose[:2]),
+        fit,
+        float(run.t[-1]),
+        start_residual(trial, run, START_FIT_S),
+    )
 
 
 def replay_error(trial, friction, effects, until: float, samples: int, seed: int) -> tuple:
@@ -43,11 +46,12 @@ def replay_error(trial, friction, effects, until: float, samples: int, seed: int
     made = bootstrap_twin(trial, friction, effects, until)
     if made is None:
         return None
-    return draws_mean_and_covariance([bootstrap_draw(*made, friction, effects, until, seed, i)
-                                       for i in range(samples)])[:2]
+    return draws_mean_and_covariance(
+        [bootstrap_draw(*made, friction, effects, until, seed, i) for i in range(samples)]
+    )[:2]
 
 
-def bootstrap_twin(trial, friction, effects, until: float) -> Optional[tuple]:
+def bootstrap_twin(trial, friction, effects, until: float) -> tuple | None:
     """replay_error's twin, with the trial's camera misses and its final position at `until` (so that the
     samples kept are the trial's), and the trial's angle noise (rad); None when the twin's samples do not
     line up with the trial's."""
@@ -83,7 +87,7 @@ def bootstrap_draw(twin, sigma_rad: float, friction, effects, until: float, seed
     return trial_residual(twin, run, until=until), start_residual(twin, run, START_FIT_S)
 
 
-def draws_mean_and_covariance(draws) -> Optional[tuple]:
+def draws_mean_and_covariance(draws) -> tuple | None:
     """(mean, covariance) of the draws' residuals, and the mean of their start rows' (None where they differ)."""
     if len({len(d[0]) for d in draws}) != 1:
         return None

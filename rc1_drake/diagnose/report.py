@@ -2,7 +2,6 @@
 Diagnosis with its tables, its text report (format) and its JSON."""
 
 import dataclasses
-from typing import Dict, List, Optional
 
 import numpy as np
 
@@ -13,9 +12,9 @@ from .verdict import Verdict
 @dataclasses.dataclass
 class CandidateResult:
     name: str
-    parameters: Dict[str, float]  # the effect's parameters at the fit
-    coordinates: Dict[str, List[float]]  # coordinate -> [value, standard error]
-    interval95: Dict[str, List[float]]
+    parameters: dict[str, float]  # the effect's parameters at the fit
+    coordinates: dict[str, list[float]]  # coordinate -> [value, standard error]
+    interval95: dict[str, list[float]]
     wald_p: float
     held_out_before: float  # RMS of the standardized held-out residuals, today's model (linear prediction)
     held_out_after: float
@@ -24,11 +23,11 @@ class CandidateResult:
     score: float  # the held-out reduction: the ranking
     status: str  # accepted | not significant | no held-out gain | not detectable here | ...
     accepted: bool = False
-    detectable_strength: Dict[str, float] = dataclasses.field(default_factory=dict)  # 3 standard errors
-    indistinguishable_from: List[str] = dataclasses.field(default_factory=list)
-    visibility: Dict[str, Dict[str, float]] = dataclasses.field(default_factory=dict)  # case -> channel -> per unit
-    simulated: Optional[dict] = None  # the check by simulation, when it was made
-    experiment: Optional[str] = None  # the kind of trial that would see it / tell it apart
+    detectable_strength: dict[str, float] = dataclasses.field(default_factory=dict)  # 3 standard errors
+    indistinguishable_from: list[str] = dataclasses.field(default_factory=list)
+    visibility: dict[str, dict[str, float]] = dataclasses.field(default_factory=dict)  # case -> channel -> per unit
+    simulated: dict | None = None  # the check by simulation, when it was made
+    experiment: str | None = None  # the kind of trial that would see it / tell it apart
 
 
 @dataclasses.dataclass
@@ -36,16 +35,20 @@ class HeldOutScore:
     """Per-trial scores of a model (a replay per trial, each with the parameters fitted without it)."""
 
     label: str
-    effects: Dict[str, float]
+    effects: dict[str, float]
     sum_of_squares: float
-    eq6_pct: Dict[str, float]  # trial -> Eq. 6 error
-    yaw_fit_pct: Dict[str, float]
-    eq6_without_miss_pct: Dict[str, float]  # trial -> Eq. 6 error with the replay's own miss taken off
+    eq6_pct: dict[str, float]  # trial -> Eq. 6 error
+    yaw_fit_pct: dict[str, float]
+    eq6_without_miss_pct: dict[str, float]  # trial -> Eq. 6 error with the replay's own miss taken off
 
-    def by_case(self, trials) -> Dict[str, dict]:
+    def by_case(self, trials) -> dict[str, dict]:
         ids = [t.trial_id for t in trials]
-        return _cases(trials, [self.eq6_pct[i] for i in ids], [self.yaw_fit_pct[i] for i in ids],
-                      [self.eq6_without_miss_pct[i] for i in ids])
+        return _cases(
+            trials,
+            [self.eq6_pct[i] for i in ids],
+            [self.yaw_fit_pct[i] for i in ids],
+            [self.eq6_without_miss_pct[i] for i in ids],
+        )
 
     def mean_eq6(self) -> float:
         return float(np.mean(list(self.eq6_pct.values())))
@@ -57,23 +60,27 @@ class HeldOutScore:
 @dataclasses.dataclass
 class Round:
     friction: Friction
-    effects: Dict[str, float]
+    effects: dict[str, float]
     baseline: HeldOutScore
-    candidates: List[CandidateResult]  # ranked, best first
-    accepted: Optional[str]
+    candidates: list[CandidateResult]  # ranked, best first
+    accepted: str | None
     misfit_p: float  # today's model's final-position misfit against the noise
     refit: str = ""  # whether today's model's parameters were refitted this round, or kept (and why)
-    ambiguous: List[str] = dataclasses.field(default_factory=list)  # candidates that explain it alike (none accepted)
-    partial: Optional[str] = None  # the best candidate, when it helped by less than half (not accepted)
+    ambiguous: list[str] = dataclasses.field(default_factory=list)  # candidates that explain it alike (none accepted)
+    partial: str | None = None  # the best candidate, when it helped by less than half (not accepted)
     polished: str = ""  # how the accepted effect's estimate moved after acceptance (polish)
 
     def table(self) -> str:
-        lines = [f"{'candidate':<32}{'fitted (95% interval)':<44}{'held-out rms':>14}{'gain':>6}{'Wald p':>9}"
-                 f"{'dAIC':>7}  status"]
+        lines = [
+            f"{'candidate':<32}{'fitted (95% interval)':<44}{'held-out rms':>14}{'gain':>6}{'Wald p':>9}"
+            f"{'dAIC':>7}  status"
+        ]
         for c in self.candidates:
             fitted = ", ".join(f"{k}={v:.3g}+-{Z95 * se:.2g}" for k, (v, se) in c.coordinates.items())
-            lines.append(f"{c.name:<32}{fitted:<44}{c.held_out_before:>6.2f}->{c.held_out_after:<6.2f}"
-                         f"{100 * c.held_out_reduction:>5.0f}%{c.wald_p:>9.2g}{c.aic_delta:>7.0f}  {c.status}")
+            lines.append(
+                f"{c.name:<32}{fitted:<44}{c.held_out_before:>6.2f}->{c.held_out_after:<6.2f}"
+                f"{100 * c.held_out_reduction:>5.0f}%{c.wald_p:>9.2g}{c.aic_delta:>7.0f}  {c.status}"
+            )
         return "\n".join(lines)
 
 
@@ -81,73 +88,111 @@ class Round:
 class Diagnosis:
     campaign: str
     start_friction: Friction
-    start_effects: Dict[str, float]
-    free: List[str]  # friction coefficients these data identify (the others stay at their start values)
-    rounds: List[Round]
-    waterfall: List[dict]
+    start_effects: dict[str, float]
+    free: list[str]  # friction coefficients these data identify (the others stay at their start values)
+    rounds: list[Round]
+    waterfall: list[dict]
     friction: Friction  # the final model
-    effects: Dict[str, float]
-    accepted: List[str]
+    effects: dict[str, float]
+    accepted: list[str]
     verdict: Verdict
     explanation: str
     misfit_p: float  # the final model's, without the unexplained trials
-    not_detectable: List[dict]
-    where_it_fails: Optional[dict]
+    not_detectable: list[dict]
+    where_it_fails: dict | None
     simulations: int
     wall_s: float
-    final_coordinates: Dict[str, List[float]] = dataclasses.field(default_factory=dict)  # name -> [value, se]
-    starts: Dict[str, List[float]] = dataclasses.field(default_factory=dict)  # "<trial>:<rate>" -> [value, se]
+    final_coordinates: dict[str, list[float]] = dataclasses.field(default_factory=dict)  # name -> [value, se]
+    starts: dict[str, list[float]] = dataclasses.field(default_factory=dict)  # "<trial>:<rate>" -> [value, se]
     stop_reason: str = ""
     resumed: int = 0  # of the simulations, results taken from a checkpoint of an interrupted run
-    unexplained_trials: Dict[str, dict] = dataclasses.field(default_factory=dict)  # trial -> misfit (see Misfit)
+    unexplained_trials: dict[str, dict] = dataclasses.field(default_factory=dict)  # trial -> misfit (see Misfit)
     trials: list = dataclasses.field(default_factory=list, repr=False)  # the trials, with their fitted starts
     report: object = dataclasses.field(default=None, repr=False)  # compare.CampaignReport of the final model (plots)
 
     @property
-    def candidates(self) -> List[CandidateResult]:
+    def candidates(self) -> list[CandidateResult]:
         return self.rounds[0].candidates if self.rounds else []
 
     def to_json(self) -> dict:
         return {
-            "campaign": self.campaign, "verdict": self.verdict, "explanation": self.explanation,
+            "campaign": self.campaign,
+            "verdict": self.verdict,
+            "explanation": self.explanation,
             "start_model": {"friction": dataclasses.asdict(self.start_friction), "effects": self.start_effects},
             "free_friction": self.free,
-            "baseline_error": {"held_out_mean_eq6_pct": self.rounds[0].baseline.mean_eq6(),
-                               "cases": self.rounds[0].baseline.by_case(self.trials)} if self.rounds else None,
+            "baseline_error": {
+                "held_out_mean_eq6_pct": self.rounds[0].baseline.mean_eq6(),
+                "cases": self.rounds[0].baseline.by_case(self.trials),
+            }
+            if self.rounds
+            else None,
             "candidates": [dataclasses.asdict(c) for c in self.candidates],
-            "rounds": [{"effects": r.effects, "accepted": r.accepted, "misfit_p": r.misfit_p, "refit": r.refit,
-                        "polished": r.polished, "ambiguous": r.ambiguous, "partial": r.partial,
-                        "candidates": [dataclasses.asdict(c) for c in r.candidates]} for r in self.rounds],
+            "rounds": [
+                {
+                    "effects": r.effects,
+                    "accepted": r.accepted,
+                    "misfit_p": r.misfit_p,
+                    "refit": r.refit,
+                    "polished": r.polished,
+                    "ambiguous": r.ambiguous,
+                    "partial": r.partial,
+                    "candidates": [dataclasses.asdict(c) for c in r.candidates],
+                }
+                for r in self.rounds
+            ],
             "accepted_effects": self.accepted,
             "model": {"friction": dataclasses.asdict(self.friction), "effects": self.effects},
             "error_after": self.waterfall[-1] if self.waterfall else None,
-            "final_coordinates": self.final_coordinates, "starts": self.starts, "stop_reason": self.stop_reason,
-            "waterfall": self.waterfall, "misfit_p": self.misfit_p, "unexplained_trials": self.unexplained_trials, "not_detectable": self.not_detectable,
-            "where_it_fails": self.where_it_fails, "simulations": self.simulations, "resumed": self.resumed,
+            "final_coordinates": self.final_coordinates,
+            "starts": self.starts,
+            "stop_reason": self.stop_reason,
+            "waterfall": self.waterfall,
+            "misfit_p": self.misfit_p,
+            "unexplained_trials": self.unexplained_trials,
+            "not_detectable": self.not_detectable,
+            "where_it_fails": self.where_it_fails,
+            "simulations": self.simulations,
+            "resumed": self.resumed,
             "wall_s": self.wall_s,
         }
 
     def format(self) -> str:
         """The report `rc1 diagnose` prints: each round's ranking, the candidates' visibility per case, the
         error waterfall, what these trials cannot see, and the verdict."""
-        lines = [f"Diagnosis of {self.campaign} ({len(self.trials)} trials; friction these data identify: "
-                 f"{', '.join(self.free) or 'none'}, the others held):"]
+        lines = [
+            f"Diagnosis of {self.campaign} ({len(self.trials)} trials; friction these data identify: "
+            f"{', '.join(self.free) or 'none'}, the others held):"
+        ]
         for k, r in enumerate(self.rounds):
-            lines += ["", f"round {k + 1}: candidates against {r.baseline.label} (held-out: leave one trial out; "
-                      f"final-position misfit p = {r.misfit_p:.2g}; today's model's parameters: {r.refit})", r.table()]
+            lines += [
+                "",
+                f"round {k + 1}: candidates against {r.baseline.label} (held-out: leave one trial out; "
+                f"final-position misfit p = {r.misfit_p:.2g}; today's model's parameters: {r.refit})",
+                r.table(),
+            ]
             if r.polished:
                 lines.append(f"{r.accepted} accepted, then estimated further: {r.polished}")
-        lines += ["", "Visibility: the final head position's change (cm) per probe step of each candidate, per case:",
-                  self.visibility_table(), "",
-                  "Error waterfall (Eq. 6 error, the same with the replay's own miss on each trial's motion taken off,"
-                  " and yaw-rate fit, per case; held-out after the start):", self.waterfall_table()]
+        lines += [
+            "",
+            "Visibility: the final head position's change (cm) per probe step of each candidate, per case:",
+            self.visibility_table(),
+            "",
+            "Error waterfall (Eq. 6 error, the same with the replay's own miss on each trial's motion taken off,"
+            " and yaw-rate fit, per case; held-out after the start):",
+            self.waterfall_table(),
+        ]
         for d in self.not_detectable:
-            lines.append(f"not detectable here: {d['name']}: {d['reason']}"
-                         + (f"; would be seen by {d['experiment']}" if d.get("experiment") else ""))
+            lines.append(
+                f"not detectable here: {d['name']}: {d['reason']}"
+                + (f"; would be seen by {d['experiment']}" if d.get("experiment") else "")
+            )
         for c in self.candidates:
             if c.accepted and c.indistinguishable_from:
-                lines.append(f"note: {c.name} cannot be told apart from {', '.join(c.indistinguishable_from)} by these "
-                             "trials" + (f"; {c.experiment}" if c.experiment else ""))
+                lines.append(
+                    f"note: {c.name} cannot be told apart from {', '.join(c.indistinguishable_from)} by these "
+                    "trials" + (f"; {c.experiment}" if c.experiment else "")
+                )
         lines += ["", f"verdict: {self.verdict}: {self.explanation}"]
         return "\n".join(lines)
 
@@ -165,26 +210,43 @@ class Diagnosis:
     def waterfall_table(self) -> str:
         """Per case and step: Eq. 6 error, the same with the replay's own miss taken off, yaw-rate fit."""
         cases = list(self.waterfall[0]["cases"]) if self.waterfall else []
-        lines = [f"{'':<38}" + "".join(f"{'Eq.6 (miss off) fit':>26}" for _ in cases) + f"{'Eq.6 (miss off)':>20}",
-                 f"{'model':<38}" + "".join(f"{c:>26}" for c in cases) + f"{'all trials':>20}"]
+        lines = [
+            f"{'':<38}" + "".join(f"{'Eq.6 (miss off) fit':>26}" for _ in cases) + f"{'Eq.6 (miss off)':>20}",
+            f"{'model':<38}" + "".join(f"{c:>26}" for c in cases) + f"{'all trials':>20}",
+        ]
         for step in self.waterfall:
-            cells = "".join(f"{v['mean_eq6_error_pct']:>9.2f}% ({v['mean_eq6_without_replay_miss_pct']:>6.2f}%)"
-                            f"{v['mean_yaw_rate_fit_pct']:>5.0f}%" for v in (step["cases"][c] for c in cases))
-            lines.append(f"{step['model']:<38}{cells}{step['mean_eq6_error_pct']:>9.2f}% "
-                         f"({step['mean_eq6_without_replay_miss_pct']:>6.2f}%)")
+            cells = "".join(
+                f"{v['mean_eq6_error_pct']:>9.2f}% ({v['mean_eq6_without_replay_miss_pct']:>6.2f}%)"
+                f"{v['mean_yaw_rate_fit_pct']:>5.0f}%"
+                for v in (step["cases"][c] for c in cases)
+            )
+            lines.append(
+                f"{step['model']:<38}{cells}{step['mean_eq6_error_pct']:>9.2f}% "
+                f"({step['mean_eq6_without_replay_miss_pct']:>6.2f}%)"
+            )
         return "\n".join(lines)
 
 
-def _cases(trials, eq6, fit_pct, without_miss) -> Dict[str, dict]:
-    out: Dict[str, list] = {}
+def _cases(trials, eq6, fit_pct, without_miss) -> dict[str, dict]:
+    out: dict[str, list] = {}
     for t, e, f, m in zip(trials, eq6, fit_pct, without_miss, strict=True):
         out.setdefault(t.case, []).append((e, f, m))
-    return {c: {"mean_eq6_error_pct": float(np.mean([v[0] for v in vs])),
-                "mean_yaw_rate_fit_pct": float(np.mean([v[1] for v in vs])),
-                "mean_eq6_without_replay_miss_pct": float(np.mean([v[2] for v in vs]))} for c, vs in out.items()}
+    return {
+        c: {
+            "mean_eq6_error_pct": float(np.mean([v[0] for v in vs])),
+            "mean_yaw_rate_fit_pct": float(np.mean([v[1] for v in vs])),
+            "mean_eq6_without_replay_miss_pct": float(np.mean([v[2] for v in vs])),
+        }
+        for c, vs in out.items()
+    }
 
 
 def waterfall_step(label, score: HeldOutScore, trials) -> dict:
-    return {"model": label, "effects": score.effects, "mean_eq6_error_pct": score.mean_eq6(),
-            "mean_eq6_without_replay_miss_pct": score.mean_eq6_without_miss(),
-            "held_out_sum_of_squares": score.sum_of_squares, "cases": score.by_case(trials)}
+    return {
+        "model": label,
+        "effects": score.effects,
+        "mean_eq6_error_pct": score.mean_eq6(),
+        "mean_eq6_without_replay_miss_pct": score.mean_eq6_without_miss(),
+        "held_out_sum_of_squares": score.sum_of_squares,
+        "cases": score.by_case(trials),
+    }

@@ -3,7 +3,6 @@ positions' misfit against the noise, and how far apart two candidates' columns a
 
 import dataclasses
 import math
-from typing import Dict, List
 
 import numpy as np
 from scipy.stats import chi2
@@ -14,11 +13,11 @@ from .linearize import FINAL_SIGMA_M, Linearization, pooled_per_case
 from .thresholds import THRESHOLDS, Thresholds
 
 
-def interval95(value: float, standard_error: float) -> List[float]:
+def interval95(value: float, standard_error: float) -> list[float]:
     return [value - Z95 * standard_error, value + Z95 * standard_error]
 
 
-def wald_p(fitted: Fit, names: List[str]) -> float:
+def wald_p(fitted: Fit, names: list[str]) -> float:
     """p-value of the Wald test that the coordinates `names` are 0 (chi-squared, one dof per coordinate)."""
 
     idx = [fitted.names.index(n) for n in names]
@@ -28,14 +27,14 @@ def wald_p(fitted: Fit, names: List[str]) -> float:
     return float(chi2.sf(stat, len(idx)))
 
 
-def _final_position_variances(lin: Linearization) -> Dict[str, float]:
+def _final_position_variances(lin: Linearization) -> dict[str, float]:
     """Per case: the final position's variance per axis, standardized (hand noise 1 plus the input noise,
     pooled per case: one trial's few bootstrap replays estimate a variance too loosely)."""
     pooled = pooled_per_case(lin.trials, [float(np.mean(np.diag(noise)[:2])) for noise in lin.noise])
     return {case: 1.0 + v for case, v in pooled.items()}
 
 
-def final_misfit(lin: Linearization, residual: List[np.ndarray], free: int, exclude=()) -> tuple:
+def final_misfit(lin: Linearization, residual: list[np.ndarray], free: int, exclude=()) -> tuple:
     """(chi-squared, dof, p) of the final positions of the trials not in `exclude` (ids) against the hand
     noise (RESIDUAL_SIGMAS, 1 in standardized units) plus the input noise."""
 
@@ -52,7 +51,7 @@ class Misfit:
     and those trials (each far beyond the noise on its own: p below Thresholds.p_misfit / trials)."""
 
     p: float
-    outliers: Dict[str, dict]  # trial -> {"off_cm", "noise_cm", "p"}
+    outliers: dict[str, dict]  # trial -> {"off_cm", "noise_cm", "p"}
     p_threshold: float = THRESHOLDS.p_misfit  # consistent with the noise above it
 
     @property
@@ -60,15 +59,18 @@ class Misfit:
         return self.p > self.p_threshold
 
 
-def misfit(lin: Linearization, residual: List[np.ndarray], free: int, thresholds: Thresholds = THRESHOLDS) -> Misfit:
+def misfit(lin: Linearization, residual: list[np.ndarray], free: int, thresholds: Thresholds = THRESHOLDS) -> Misfit:
 
     variance = _final_position_variances(lin)
     outliers = {}
     for t, r in zip(lin.trials, residual, strict=True):
         p = float(chi2.sf(float(r[:2] @ r[:2]) / variance[t.case], 2))
         if p < thresholds.p_misfit / len(lin.trials):
-            outliers[t.trial_id] = {"off_cm": 100 * FINAL_SIGMA_M * float(np.linalg.norm(r[:2])),
-                                    "noise_cm": 100 * FINAL_SIGMA_M * math.sqrt(variance[t.case]), "p": p}
+            outliers[t.trial_id] = {
+                "off_cm": 100 * FINAL_SIGMA_M * float(np.linalg.norm(r[:2])),
+                "noise_cm": 100 * FINAL_SIGMA_M * math.sqrt(variance[t.case]),
+                "p": p,
+            }
     if len(outliers) > thresholds.max_outlier_fraction * len(lin.trials):
         return Misfit(final_misfit(lin, residual, free)[2], outliers, thresholds.p_misfit)
     return Misfit(final_misfit(lin, residual, free, exclude=outliers)[2], outliers, thresholds.p_misfit)

@@ -54,14 +54,20 @@ def plant_numbers() -> PlantNumbers:
     rc1 = add_rc1_plant(DiagramBuilder(), time_step=1e-3)
     plant = rc1.plant
     context = plant.CreateDefaultContext()
-    inertias = [plant.GetBodyByName(f"module_{k}", rc1.model_instance).CalcSpatialInertiaInBodyFrame(context)
-                for k in range(1, NUM_MODULES + 1)]
+    inertias = [
+        plant.GetBodyByName(f"module_{k}", rc1.model_instance).CalcSpatialInertiaInBodyFrame(context)
+        for k in range(1, NUM_MODULES + 1)
+    ]
     com = np.array([complex(*s.get_com()[:2]) for s in inertias])
     central = np.array([s.Shift(s.get_com()).CalcRotationalInertia().get_moments()[2] for s in inertias])
-    return PlantNumbers(geometry=rc1.geometry, com=com, central_yaw_inertia=central,
-                        effort_limit=np.array(rc1.effort_limit, dtype=float),
-                        lower_limit=np.array([j.position_lower_limits()[0] for j in rc1.joints]),
-                        upper_limit=np.array([j.position_upper_limits()[0] for j in rc1.joints]))
+    return PlantNumbers(
+        geometry=rc1.geometry,
+        com=com,
+        central_yaw_inertia=central,
+        effort_limit=np.array(rc1.effort_limit, dtype=float),
+        lower_limit=np.array([j.position_lower_limits()[0] for j in rc1.joints]),
+        upper_limit=np.array([j.position_upper_limits()[0] for j in rc1.joints]),
+    )
 
 
 @jit
@@ -71,7 +77,7 @@ def chain_terms(x, mass, yaw_inertia, com, joint_in_parent, joint_in_child, grav
     nm = nj + 1
     nv = nj + 3
     phi = np.cumsum(x[2:nv])
-    phi_dot = np.cumsum(x[nv + 2:])
+    phi_dot = np.cumsum(x[nv + 2 :])
     e = np.exp(1j * phi)
     p = np.empty(nm, dtype=np.complex128)  # module origins
     acc = np.empty(nm, dtype=np.complex128)  # their velocity-product accelerations
@@ -103,12 +109,12 @@ def chain_terms(x, mass, yaw_inertia, com, joint_in_parent, joint_in_child, grav
             ci = np.conj(jac[i])
             bias[i] += m * (ci * a_k).real
             gravity[i] += m * (ci * gravity_xy).real
-            for l in range(i, n):
-                M[i, l] += m * (ci * jac[l]).real
+            for j in range(i, n):
+                M[i, j] += m * (ci * jac[j]).real
         for i in range(2, n):  # Omega_k: the head yaw and joints 0..k-1
-            for l in range(i, n):
-                M[i, l] += yaw_inertia[k]
+            for j in range(i, n):
+                M[i, j] += yaw_inertia[k]
     for i in range(nv):
-        for l in range(i):
-            M[i, l] = M[l, i]
+        for j in range(i):
+            M[i, j] = M[j, i]
     return M, bias, gravity

@@ -42,10 +42,17 @@ def _hermite(t, breaks, values, rates, segment):
     h = breaks[i + 1] - breaks[i]
     s = (t - breaks[i]) / h
     s2, s3 = s * s, s * s * s
-    value = ((2 * s3 - 3 * s2 + 1) * values[i] + (s3 - 2 * s2 + s) * h * rates[i]
-             + (-2 * s3 + 3 * s2) * values[i + 1] + (s3 - s2) * h * rates[i + 1])
-    rate = ((6 * s2 - 6 * s) * (values[i] - values[i + 1]) / h + (3 * s2 - 4 * s + 1) * rates[i]
-            + (3 * s2 - 2 * s) * rates[i + 1])
+    value = (
+        (2 * s3 - 3 * s2 + 1) * values[i]
+        + (s3 - 2 * s2 + s) * h * rates[i]
+        + (-2 * s3 + 3 * s2) * values[i + 1]
+        + (s3 - s2) * h * rates[i + 1]
+    )
+    rate = (
+        (6 * s2 - 6 * s) * (values[i] - values[i + 1]) / h
+        + (3 * s2 - 4 * s + 1) * rates[i]
+        + (3 * s2 - 2 * s) * rates[i + 1]
+    )
     return value, rate
 
 
@@ -81,8 +88,11 @@ def _servo_target(gains, theta, theta_dot, lower, upper):
 def _servo_command(gains, z_pid, theta, theta_dot, x, lower, upper):
     """The servo PID's command Ki z + Kp (target - q) + Kd (theta_dot - q_dot) at state x (servo.add_servos)."""
     nq = x.shape[0] // 2
-    return (gains[1] * z_pid + gains[0] * (_servo_target(gains, theta, theta_dot, lower, upper) - x[3:nq])
-            + gains[2] * (theta_dot - x[nq + 3:]))
+    return (
+        gains[1] * z_pid
+        + gains[0] * (_servo_target(gains, theta, theta_dot, lower, upper) - x[3:nq])
+        + gains[2] * (theta_dot - x[nq + 3 :])
+    )
 
 
 @jit
@@ -96,9 +106,38 @@ def _heading_gain(x, heading, z_heading):
 
 
 @jit
-def _sensitivity_step(x, x_next, v_star, force_plus, command, sens, sens_z, sens_zh, dparams, dgravity, z_heading, dt,
-                      params, power, servo_gains, gains, heading, mass, yaw_inertia, com, gravity_xy, in_plane,
-                      lower, upper, locked, joint_in_parent, joint_in_child, wheel_module, wheel_offset, wheel_toe):
+def _sensitivity_step(
+    x,
+    x_next,
+    v_star,
+    force_plus,
+    command,
+    sens,
+    sens_z,
+    sens_zh,
+    dparams,
+    dgravity,
+    z_heading,
+    dt,
+    params,
+    power,
+    servo_gains,
+    gains,
+    heading,
+    mass,
+    yaw_inertia,
+    com,
+    gravity_xy,
+    in_plane,
+    lower,
+    upper,
+    locked,
+    joint_in_parent,
+    joint_in_child,
+    wheel_module,
+    wheel_offset,
+    wheel_toe,
+):
     """Carry the sensitivities through one step (tangent.step_tangent), the PID's command and integrators, and
     the heading controller (the serpenoid's and the replay reference's time terms do not depend on parameters)."""
     nq = x.shape[0] // 2
@@ -108,10 +147,35 @@ def _sensitivity_step(x, x_next, v_star, force_plus, command, sens, sens_z, sens
     dcommand = np.empty((num, nq - 3))
     for d in range(num):
         dtheta = kp_h * (weights @ sens[d, :nq]) + ki_h * sens_zh[d]
-        dcommand[d] = gains[1] * sens_z[d] + gains[0] * (dtheta - sens[d, 3:nq]) - gains[2] * sens[d, nq + 3:]
-    new = step_tangent(x, force_plus, v_star, x_next[nq:], sens, dparams, dgravity, dcommand, dt, params, command,
-                       power, servo_gains, mass, yaw_inertia, com, gravity_xy, in_plane, lower, upper, locked,
-                       joint_in_parent, joint_in_child, wheel_module, wheel_offset, wheel_toe)
+        dcommand[d] = gains[1] * sens_z[d] + gains[0] * (dtheta - sens[d, 3:nq]) - gains[2] * sens[d, nq + 3 :]
+    new = step_tangent(
+        x,
+        force_plus,
+        v_star,
+        x_next[nq:],
+        sens,
+        dparams,
+        dgravity,
+        dcommand,
+        dt,
+        params,
+        command,
+        power,
+        servo_gains,
+        mass,
+        yaw_inertia,
+        com,
+        gravity_xy,
+        in_plane,
+        lower,
+        upper,
+        locked,
+        joint_in_parent,
+        joint_in_child,
+        wheel_module,
+        wheel_offset,
+        wheel_toe,
+    )
     kp_n, ki_n = _heading_gain(x_next, heading, z_heading)
     for d in range(num):
         de = weights @ new[d, :nq]
@@ -121,10 +185,51 @@ def _sensitivity_step(x, x_next, v_star, force_plus, command, sens, sens_z, sens
 
 
 @jit
-def advance_run(x, z_pid, z_heading, segment, k0, k1, t_first, dt, extra_force, params, power, locked,
-                log_steps, log_times, log_next, last_torque, log_state, log_torque, source, gait, heading, breaks,
-                values, rates, gains, stop, model, mass, yaw_inertia, com, lower, upper, joint_in_parent,
-                joint_in_child, wheel_module, wheel_offset, wheel_toe, sens, sens_z, sens_zh, dparams, dgravity, log_sens):
+def advance_run(
+    x,
+    z_pid,
+    z_heading,
+    segment,
+    k0,
+    k1,
+    t_first,
+    dt,
+    extra_force,
+    params,
+    power,
+    locked,
+    log_steps,
+    log_times,
+    log_next,
+    last_torque,
+    log_state,
+    log_torque,
+    source,
+    gait,
+    heading,
+    breaks,
+    values,
+    rates,
+    gains,
+    stop,
+    model,
+    mass,
+    yaw_inertia,
+    com,
+    lower,
+    upper,
+    joint_in_parent,
+    joint_in_child,
+    wheel_module,
+    wheel_offset,
+    wheel_toe,
+    sens,
+    sens_z,
+    sens_zh,
+    dparams,
+    dgravity,
+    log_sens,
+):
     """Take the updates k0 <= k < k1 in place on the carried state (x, z_pid, z_heading, segment, log_next,
     last_torque); returns (status, k) with k the index of the state x now holds. Failures change params,
     power and locked between calls (session.py), as the failure switch does between AdvanceTo calls.
@@ -144,10 +249,28 @@ def advance_run(x, z_pid, z_heading, segment, k0, k1, t_first, dt, extra_force, 
         t = k * dt if k > k0 or np.isnan(t_first) else t_first
         theta, theta_dot, error = _command(t, x, source, gait, heading, z_heading, breaks, values, rates, segment)
         command = _servo_command(gains, z_pid, theta, theta_dot, x, lower, upper)
-        x_next, torque, v_star, force_plus = plant_step(x, dt, params, command, power, servo_gains, extra_force,
-                                                        mass, yaw_inertia, com, gravity_xy, in_plane, lower,
-                                                        upper, locked, joint_in_parent, joint_in_child, wheel_module,
-                                                        wheel_offset, wheel_toe)
+        x_next, torque, v_star, force_plus = plant_step(
+            x,
+            dt,
+            params,
+            command,
+            power,
+            servo_gains,
+            extra_force,
+            mass,
+            yaw_inertia,
+            com,
+            gravity_xy,
+            in_plane,
+            lower,
+            upper,
+            locked,
+            joint_in_parent,
+            joint_in_child,
+            wheel_module,
+            wheel_offset,
+            wheel_toe,
+        )
         while log_next[0] < log_steps.shape[0] and log_steps[log_next[0]] == k:
             row = log_next[0]
             log_state[row] = x
@@ -155,22 +278,69 @@ def advance_run(x, z_pid, z_heading, segment, k0, k1, t_first, dt, extra_force, 
                 log_sens[row] = sens
             log_torque[row] = torque
             if log_times[row] != t:  # a log between two updates: the servo output at its own time
-                theta, theta_dot, _ = _command(log_times[row], x, source, gait, heading, z_heading, breaks, values,
-                                               rates, segment)
+                theta, theta_dot, _ = _command(
+                    log_times[row], x, source, gait, heading, z_heading, breaks, values, rates, segment
+                )
                 between = _servo_command(gains, z_pid, theta, theta_dot, x, lower, upper)
-                log_torque[row] = plant_step(x, dt, params, between, power, servo_gains, extra_force, mass,
-                                             yaw_inertia, com, gravity_xy, in_plane, lower, upper, locked,
-                                             joint_in_parent, joint_in_child, wheel_module, wheel_offset,
-                                             wheel_toe)[1]
+                log_torque[row] = plant_step(
+                    x,
+                    dt,
+                    params,
+                    between,
+                    power,
+                    servo_gains,
+                    extra_force,
+                    mass,
+                    yaw_inertia,
+                    com,
+                    gravity_xy,
+                    in_plane,
+                    lower,
+                    upper,
+                    locked,
+                    joint_in_parent,
+                    joint_in_child,
+                    wheel_module,
+                    wheel_offset,
+                    wheel_toe,
+                )[1]
             log_next[0] += 1
         last_torque[:] = torque
         # The plant updates its state before the controllers update theirs (an unrestricted update comes
         # first in Drake's Simulator), so the integrators see x_{k+1} and the command's time t_k.
         if sens.shape[0]:
-            _sensitivity_step(x, x_next, v_star, force_plus, command, sens, sens_z, sens_zh, dparams, dgravity,
-                              z_heading, dt, params, power, servo_gains, gains, heading, mass, yaw_inertia, com,
-                              gravity_xy, in_plane, lower, upper, locked, joint_in_parent, joint_in_child,
-                              wheel_module, wheel_offset, wheel_toe)
+            _sensitivity_step(
+                x,
+                x_next,
+                v_star,
+                force_plus,
+                command,
+                sens,
+                sens_z,
+                sens_zh,
+                dparams,
+                dgravity,
+                z_heading,
+                dt,
+                params,
+                power,
+                servo_gains,
+                gains,
+                heading,
+                mass,
+                yaw_inertia,
+                com,
+                gravity_xy,
+                in_plane,
+                lower,
+                upper,
+                locked,
+                joint_in_parent,
+                joint_in_child,
+                wheel_module,
+                wheel_offset,
+                wheel_toe,
+            )
         theta, theta_dot, error = _command(t, x_next, source, gait, heading, z_heading, breaks, values, rates, segment)
         z_pid += dt * (_servo_target(gains, theta, theta_dot, lower, upper) - x_next[3:nq])
         z_heading[0] += dt * error

@@ -52,14 +52,17 @@ class HermiteReference:
     q_dot: np.ndarray  # (N, 13) rad/s
 
     @classmethod
-    def from_trajectory(cls, trajectory) -> "HermiteReference":
+    def from_trajectory(cls, trajectory) -> HermiteReference:
         """The knots of a Drake PiecewisePolynomial of cubic (or lower) segments that is C1 at its breaks."""
         if trajectory.getSegmentPolynomialDegree(0) > 3:
             raise ValueError("the compiled engine follows C1 cubic joint references (PiecewisePolynomial.CubicHermite)")
         t = np.array(trajectory.get_segment_times())
         derivative = trajectory.derivative(1)
-        return cls(t=t, q=np.array([trajectory.value(s).ravel() for s in t]),
-                   q_dot=np.array([derivative.value(s).ravel() for s in t]))
+        return cls(
+            t=t,
+            q=np.array([trajectory.value(s).ravel() for s in t]),
+            q_dot=np.array([derivative.value(s).ravel() for s in t]),
+        )
 
 
 class CompiledSession:
@@ -82,9 +85,11 @@ class CompiledSession:
         if joint_reference is None or isinstance(joint_reference, HermiteReference):
             self.joint_reference = joint_reference
         elif hasattr(joint_reference, "q_dot"):
-            self.joint_reference = HermiteReference(t=np.asarray(joint_reference.t, dtype=float),
-                                                    q=np.asarray(joint_reference.q, dtype=float),
-                                                    q_dot=np.asarray(joint_reference.q_dot, dtype=float))
+            self.joint_reference = HermiteReference(
+                t=np.asarray(joint_reference.t, dtype=float),
+                q=np.asarray(joint_reference.q, dtype=float),
+                q_dot=np.asarray(joint_reference.q_dot, dtype=float),
+            )
         else:
             self.joint_reference = HermiteReference.from_trajectory(joint_reference)
         if self._drake is not None:
@@ -98,8 +103,10 @@ class CompiledSession:
 
     def _on_drake(self, scenario: Scenario, initial) -> Run:
         """Runs whose effects carry a Python force (ModelSetup.extra_forces) go to the Drake engine."""
-        _warn_once("an effect adds a Python force (ModelSetup.extra_forces), which the compiled engine cannot "
-                   "call: such runs use the Drake engine")
+        _warn_once(
+            "an effect adds a Python force (ModelSetup.extra_forces), which the compiled engine cannot "
+            "call: such runs use the Drake engine"
+        )
         drake = self._drake
         if drake is None or build_key(scenario, drake.joint_reference) != drake.built.build_key:
             self._drake = Session(scenario, joint_reference=self._trajectory())
@@ -142,9 +149,17 @@ class CompiledSession:
             sensitivity = np.concatenate([sensitivity, run.sens[None]])
         if run.names and status in _EVENT_COORDINATE:
             sensitivity[-1] = run.at_event(k, t_stop, sensitivity[-1], _EVENT_COORDINATE[status])
-        return Run(scenario=scenario, t=t, state=state, servo_torque=torque,
-                   stop_reason=_REASON.get(status, "timed_out"), wall_time_s=wall, geometry=self.geometry,
-                   sensitivity=sensitivity if run.names else None, sensitivity_names=run.names)
+        return Run(
+            scenario=scenario,
+            t=t,
+            state=state,
+            servo_torque=torque,
+            stop_reason=_REASON.get(status, "timed_out"),
+            wall_time_s=wall,
+            geometry=self.geometry,
+            sensitivity=sensitivity if run.names else None,
+            sensitivity_names=run.names,
+        )
 
     def _fail(self, failure, params, power, locked, x) -> None:
         """servo.FailureSwitch.fail on the compiled engine's arrays."""
@@ -161,16 +176,23 @@ class CompiledSession:
         """(source kind, serpenoid (4, 13), heading controller row, reference knots) of a run."""
         if self.joint_reference is not None:
             ref = self.joint_reference
-            return (REFERENCE, np.zeros((4, NUM_JOINTS)), np.zeros(5 + 16),
-                    (np.ascontiguousarray(ref.t, dtype=float), np.ascontiguousarray(ref.q, dtype=float),
-                     np.ascontiguousarray(ref.q_dot, dtype=float)))
+            return (
+                REFERENCE,
+                np.zeros((4, NUM_JOINTS)),
+                np.zeros(5 + 16),
+                (
+                    np.ascontiguousarray(ref.t, dtype=float),
+                    np.ascontiguousarray(ref.q, dtype=float),
+                    np.ascontiguousarray(ref.q_dot, dtype=float),
+                ),
+            )
         amp, omega, phase, bias = serpenoid_parameters(commanded_gait(scenario.gait, scenario.effects))
         hc = scenario.heading_control
         heading = np.zeros(5 + 16)
         if hc.active:
             heading[:5] = [1.0, hc.kp, hc.ki_per_s, math.radians(hc.bias_limit_deg), math.radians(hc.heading_ref_deg)]
             heading[5 + 2] = 1.0  # mean module yaw = head yaw + sum_i (14 - i)/14 q_i (diagram.add_heading_control)
-            heading[5 + 3:] = (NUM_JOINTS + 1 - np.arange(1, NUM_JOINTS + 1)) / (NUM_JOINTS + 1)
+            heading[5 + 3 :] = (NUM_JOINTS + 1 - np.arange(1, NUM_JOINTS + 1)) / (NUM_JOINTS + 1)
         empty = (np.zeros(2), np.zeros((2, NUM_JOINTS)), np.zeros((2, NUM_JOINTS)))
         return SERPENOID, np.array([amp, omega, phase, bias]), heading, empty
 
@@ -181,9 +203,12 @@ class _CompiledRun:
     def __init__(self, session: CompiledSession, scenario: Scenario, setup, x, names=()):
         numbers = session.numbers
         self.dt = scenario.numerics.time_step_s
-        self.params = friction_parameters(friction=scenario.friction,
-                                          sgn_smoothing_m_s=scenario.numerics.sgn_smoothing_m_s, setup=setup,
-                                          geometry=numbers.geometry)
+        self.params = friction_parameters(
+            friction=scenario.friction,
+            sgn_smoothing_m_s=scenario.numerics.sgn_smoothing_m_s,
+            setup=setup,
+            geometry=numbers.geometry,
+        )
         limit = scenario.servo.torque_limit_Nm
         self.power = numbers.effort_limit.copy() if limit is None else np.full(NUM_JOINTS, float(limit))
         self.locked = np.zeros(NUM_JOINTS, dtype=np.bool_)
@@ -196,34 +221,85 @@ class _CompiledRun:
         self.log_t, self.log_steps = _log_schedule(scenario.numerics.log_period_s, scenario.stop.time_limit_s, self.dt)
         self.names = names
         self.dparams, self.dgravity, seeds = sensitivity_directions(scenario, names, len(self.params))
-        self.sens, self.sens_z, self.sens_zh = seeds, np.zeros((len(names), NUM_JOINTS)), \
-            np.zeros(len(names))
+        self.sens, self.sens_z, self.sens_zh = seeds, np.zeros((len(names), NUM_JOINTS)), np.zeros(len(names))
         self.log_sens = np.zeros((len(self.log_steps), len(names), 32))
         self.log_state = np.zeros((len(self.log_steps), 32))
         self.log_torque = np.zeros((len(self.log_steps), NUM_JOINTS))
         source, gait, heading, knots = session._source(scenario)
         stop = scenario.stop
-        self.stop_row = stop_row = np.array([np.nan if stop.line_x_m is None else stop.line_x_m,
-                             np.inf if stop.revolutions is None else 2 * math.pi * stop.revolutions, x[2]])
+        self.stop_row = stop_row = np.array(
+            [
+                np.nan if stop.line_x_m is None else stop.line_x_m,
+                np.inf if stop.revolutions is None else 2 * math.pi * stop.revolutions,
+                x[2],
+            ]
+        )
         gravity = setup.gravity
         model = np.array([gravity[0], gravity[1], float(bool(gravity[0] or gravity[1]))])
         s = scenario.servo
         gains = np.array([s.kp_Nm_per_rad, s.ki_Nm_per_rad_s, s.kd_Nm_s_per_rad, s.lead_s])
-        self.constant = (self.log_state, self.log_torque, source, gait, heading, *knots, gains, stop_row, model,
-                         numbers.masses(setup.payload_module, setup.payload_kg), numbers.central_yaw_inertia,
-                         numbers.com, numbers.lower_limit, numbers.upper_limit,
-                         *numbers.geometry.arrays)
+        self.constant = (
+            self.log_state,
+            self.log_torque,
+            source,
+            gait,
+            heading,
+            *knots,
+            gains,
+            stop_row,
+            model,
+            numbers.masses(setup.payload_module, setup.payload_kg),
+            numbers.central_yaw_inertia,
+            numbers.com,
+            numbers.lower_limit,
+            numbers.upper_limit,
+            *numbers.geometry.arrays,
+        )
 
     def advance(self, k0: int, k1: int, t_first: float = np.nan, *, carried=None) -> tuple:
         """Updates k0 <= k < k1 (run.advance_run) on the carried state, or on `carried` (a copy) if given."""
         x, z, zh, seg, params, power, locked, log_next, last, sens, sens_z, sens_zh = carried or self._carried()
-        return advance_run(x, z, zh, seg, k0, k1, t_first, self.dt, np.zeros(16), params, power, locked,
-                           self.log_steps, self.log_t, log_next, last, *self.constant, sens, sens_z, sens_zh,
-                           self.dparams, self.dgravity, self.log_sens)
+        return advance_run(
+            x,
+            z,
+            zh,
+            seg,
+            k0,
+            k1,
+            t_first,
+            self.dt,
+            np.zeros(16),
+            params,
+            power,
+            locked,
+            self.log_steps,
+            self.log_t,
+            log_next,
+            last,
+            *self.constant,
+            sens,
+            sens_z,
+            sens_zh,
+            self.dparams,
+            self.dgravity,
+            self.log_sens,
+        )
 
     def _carried(self) -> list:
-        return [self.x, self.z, self.z_heading, self.segment, self.params, self.power, self.locked, self.log_next,
-                self.last_torque, self.sens, self.sens_z, self.sens_zh]
+        return [
+            self.x,
+            self.z,
+            self.z_heading,
+            self.segment,
+            self.params,
+            self.power,
+            self.locked,
+            self.log_next,
+            self.last_torque,
+            self.sens,
+            self.sens_z,
+            self.sens_zh,
+        ]
 
     def log_due(self, k: int, t: float) -> bool:
         due = self.log_next[0]
@@ -258,8 +334,12 @@ class _CompiledRun:
 
     def logs(self) -> tuple:
         rows = int(self.log_next[0])
-        return (self.log_t[:rows].copy(), self.log_state[:rows].copy(), self.log_torque[:rows].copy(),
-                self.log_sens[:rows].copy())
+        return (
+            self.log_t[:rows].copy(),
+            self.log_state[:rows].copy(),
+            self.log_torque[:rows].copy(),
+            self.log_sens[:rows].copy(),
+        )
 
 
 # The start state's head rates (a replay's start from the data, start.py): d state / d x0 along these entries.
@@ -302,8 +382,12 @@ def sensitivity_directions(scenario: Scenario, names, size: int) -> tuple:
             setup = model_setup(effects)
             if (setup.payload_module, setup.payload_kg) != (base.payload_module, base.payload_kg) or setup.extra_forces:
                 raise ValueError(f"no sensitivity for '{name}': it changes the masses or adds a Python force")
-            params = friction_parameters(friction=friction, sgn_smoothing_m_s=scenario.numerics.sgn_smoothing_m_s,
-                                         setup=setup, geometry=plant_numbers().geometry)
+            params = friction_parameters(
+                friction=friction,
+                sgn_smoothing_m_s=scenario.numerics.sgn_smoothing_m_s,
+                setup=setup,
+                geometry=plant_numbers().geometry,
+            )
             dparams[d] += sign * params / (2 * h)
             dgravity[d] += sign * setup.gravity[:2] / (2 * h)
     return dparams, dgravity, seeds

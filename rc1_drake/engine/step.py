@@ -55,7 +55,7 @@ def limit_constraints(q, v, v_star, A, dt, lower, upper, locked):
         for sign, limit in ((1.0, lower[j]), (-1.0, upper[j])):
             if (sign > 0.0 and limit >= q0 - dq) or (sign < 0.0 and limit <= q0 + dq):
                 w = 1.0 / A[d, d]
-                R = max(LIMIT_BETA ** 2 / (4.0 * np.pi ** 2) * w, rigid_regularization(dt))
+                R = max(LIMIT_BETA**2 / (4.0 * np.pi**2) * w, rigid_regularization(dt))
                 dofs[count] = d
                 signs[count] = sign
                 v_hat[count] = -sign * (q0 - limit) / (2.0 * dt)
@@ -107,9 +107,28 @@ def _limit_solve(q, v, v_star, A, dt, lower, upper, locked):
 
 
 @jit
-def plant_step(x, dt, params, servo_command, servo_power, servo_gains, extra_force, mass, yaw_inertia, com,
-               gravity_xy, gravity_in_plane, lower, upper, locked, joint_in_parent, joint_in_child,
-               wheel_module, wheel_offset, wheel_toe):
+def plant_step(
+    x,
+    dt,
+    params,
+    servo_command,
+    servo_power,
+    servo_gains,
+    extra_force,
+    mass,
+    yaw_inertia,
+    com,
+    gravity_xy,
+    gravity_in_plane,
+    lower,
+    upper,
+    locked,
+    joint_in_parent,
+    joint_in_child,
+    wheel_module,
+    wheel_offset,
+    wheel_toe,
+):
     """(x+, servo torque (13,), v*, the force that gives the friction solve's v+ = v + dt M^-1 force) of one
     Diagram step from state x (module docstring)."""
     nv = x.shape[0] // 2
@@ -117,9 +136,22 @@ def plant_step(x, dt, params, servo_command, servo_power, servo_gains, extra_for
     other = -bias
     if gravity_in_plane:
         other = other + gravity
-    friction, servo = friction_step(x, other + extra_force, M, dt, params, NEWTON_STEPS, servo_command, servo_power,
-                                    servo_gains, joint_in_parent, joint_in_child, wheel_module, wheel_offset,
-                                    wheel_toe)
+    friction, servo = friction_step(
+        x,
+        other + extra_force,
+        M,
+        dt,
+        params,
+        NEWTON_STEPS,
+        servo_command,
+        servo_power,
+        servo_gains,
+        joint_in_parent,
+        joint_in_child,
+        wheel_module,
+        wheel_offset,
+        wheel_toe,
+    )
     tau = -bias + gravity + friction + extra_force  # the plant applies its gravity field itself
     tau[3:] += servo[3:]
     v = x[nv:]

@@ -53,7 +53,7 @@ def chain_tangent(x, dx, w, mass, yaw_inertia, com, joint_in_parent, joint_in_ch
     nv = nj + 3
     num = dx.shape[0]
     phi = np.cumsum(x[2:nv])
-    phi_dot = np.cumsum(x[nv + 2:])
+    phi_dot = np.cumsum(x[nv + 2 :])
     e = np.exp(1j * phi)
     out_mw = np.zeros((num, nv))
     out_bias = np.zeros((num, nv))
@@ -68,7 +68,7 @@ def chain_tangent(x, dx, w, mass, yaw_inertia, com, joint_in_parent, joint_in_ch
     djac = np.empty(nv, dtype=np.complex128)
     for d in range(num):
         dphi = np.cumsum(dx[d, 2:nv])
-        dphi_dot = np.cumsum(dx[d, nv + 2:])
+        dphi_dot = np.cumsum(dx[d, nv + 2 :])
         p[0] = x[0] + 1j * x[1]
         dp[0] = dx[d, 0] + 1j * dx[d, 1]
         acc[0] = 0.0
@@ -83,8 +83,13 @@ def chain_tangent(x, dx, w, mass, yaw_inertia, com, joint_in_parent, joint_in_ch
             p[j + 1] = p[j] + a - b
             dp[j + 1] = dp[j] + da - db
             acc[j + 1] = acc[j] - phi_dot[j] ** 2 * a + phi_dot[j + 1] ** 2 * b
-            dacc[j + 1] = (dacc[j] - 2.0 * phi_dot[j] * dphi_dot[j] * a - phi_dot[j] ** 2 * da
-                           + 2.0 * phi_dot[j + 1] * dphi_dot[j + 1] * b + phi_dot[j + 1] ** 2 * db)
+            dacc[j + 1] = (
+                dacc[j]
+                - 2.0 * phi_dot[j] * dphi_dot[j] * a
+                - phi_dot[j] ** 2 * da
+                + 2.0 * phi_dot[j + 1] * dphi_dot[j + 1] * b
+                + phi_dot[j + 1] ** 2 * db
+            )
         for k in range(nm):
             r = e[k] * com[k]
             dr = 1j * dphi[k] * r
@@ -164,15 +169,36 @@ def wheel_local_tangent(x, dx, joint_in_parent, joint_in_child, wheel_module, wh
 def _coulomb_partials(u, mu_n, eps, asymmetry, ratio, speed):
     """d/d(mu N), d/da and d/dr of friction.coulomb_law's Coulomb term mu N (1 + a s)(1 + r d) s."""
     s = u / np.sqrt(u * u + eps * eps)
-    decay = np.exp(-(u / speed) ** 2)  # also at r = 0, where d/dr needs it
-    return (1.0 + asymmetry * s) * (1.0 + ratio * decay) * s, mu_n * s * s * (1.0 + ratio * decay), \
-        mu_n * (1.0 + asymmetry * s) * decay * s
+    decay = np.exp(-((u / speed) ** 2))  # also at r = 0, where d/dr needs it
+    return (
+        (1.0 + asymmetry * s) * (1.0 + ratio * decay) * s,
+        mu_n * s * s * (1.0 + ratio * decay),
+        mu_n * (1.0 + asymmetry * s) * decay * s,
+    )
 
 
 @jit
-def friction_tangent(x, dx, dparams, dcommand, dother, dmass_w, v_plus, mass_matrix, other_force, dt, params,
-                     servo_command, servo_power, servo_gains, joint_in_parent, joint_in_child, wheel_module,
-                     wheel_offset, wheel_toe):
+def friction_tangent(
+    x,
+    dx,
+    dparams,
+    dcommand,
+    dother,
+    dmass_w,
+    v_plus,
+    mass_matrix,
+    other_force,
+    dt,
+    params,
+    servo_command,
+    servo_power,
+    servo_gains,
+    joint_in_parent,
+    joint_in_child,
+    wheel_module,
+    wheel_offset,
+    wheel_toe,
+):
     """The friction solve's velocity v+ (friction.friction_step) differentiated along P directions: the state
     dx (P, 32), the parameter vector dparams (P, len(params)), the servo command dcommand (P, 13) and the other
     generalized forces dother (P, 16); dmass_w (P, 16) is (dM dx) (v+ - v). By the implicit function theorem on
@@ -181,16 +207,62 @@ def friction_tangent(x, dx, dparams, dcommand, dother, dmass_w, v_plus, mass_mat
     residual's change at fixed v+."""
     nv = x.shape[0] // 2
     nw = wheel_module.shape[0]
-    (jac_long, jac_lat, joint_damping, _, normal, jac_head, head_coulomb, joint_coulomb, servo_offset, servo_rate,
-     power, toe) = friction_problem(x, other_force, mass_matrix, dt, params, servo_command, servo_power, servo_gains,
-                                    joint_in_parent, joint_in_child, wheel_module, wheel_offset, wheel_toe)
+    (
+        jac_long,
+        jac_lat,
+        joint_damping,
+        _,
+        normal,
+        jac_head,
+        head_coulomb,
+        joint_coulomb,
+        servo_offset,
+        servo_rate,
+        power,
+        toe,
+    ) = friction_problem(
+        x,
+        other_force,
+        mass_matrix,
+        dt,
+        params,
+        servo_command,
+        servo_power,
+        servo_gains,
+        joint_in_parent,
+        joint_in_child,
+        wheel_module,
+        wheel_offset,
+        wheel_toe,
+    )
     mass_damped = mass_matrix + dt * np.diag(joint_damping)
     spans = np.array([jacobian_span(jac_long, jac_lat, w) for w in range(nw)])
     eps, shape = params[EPS], params[SHAPE]
     mu_long, mu_lat, c_long, c_lat = params[MU_LONG], params[MU_LAT], params[C_LONG], params[C_LAT]
-    _, K, linear = assemble_step(v_plus, True, jac_long, jac_lat, spans, mass_damped, dt, mu_long, mu_lat, c_long,
-                                 c_lat, normal, eps, shape, jac_head, head_coulomb, joint_coulomb, JOINT_EPS_RAD_S,
-                                 servo_offset, servo_rate, power, True)
+    _, K, linear = assemble_step(
+        v_plus,
+        True,
+        jac_long,
+        jac_lat,
+        spans,
+        mass_damped,
+        dt,
+        mu_long,
+        mu_lat,
+        c_long,
+        c_lat,
+        normal,
+        eps,
+        shape,
+        jac_head,
+        head_coulomb,
+        joint_coulomb,
+        JOINT_EPS_RAD_S,
+        servo_offset,
+        servo_rate,
+        power,
+        True,
+    )
     low = cholesky(K)  # the exact tangent may lose definiteness where a Stribeck law falls: LU then
     local, dlocal = wheel_local_tangent(x, dx, joint_in_parent, joint_in_child, wheel_module, wheel_offset, toe)
     free = params[FAILED] == FREE
@@ -215,16 +287,25 @@ def friction_tangent(x, dx, dparams, dcommand, dother, dmass_w, v_plus, mass_mat
             f_l, f_t = -(c_long * u.real + c_l), -(c_lat * u.imag + c_t)
             pl_mu, pl_a, _ = _coulomb_partials(u.real, mu_long * n_w, eps, shape[1], 0.0, shape[3])
             pt_mu, pt_a, pt_r = _coulomb_partials(u.imag, mu_lat * n_w, eps, shape[0], shape[2], shape[3])
-            df_l = (-(c_long + t_l) * du.real - dp[C_LONG] * u.real
-                    - pl_mu * (dp[MU_LONG] * n_w + mu_long * dn_w) - pl_a * dp[SHAPE][1])
-            df_t = (-(c_lat + t_t) * du.imag - dp[C_LAT] * u.imag
-                    - pt_mu * (dp[MU_LAT] * n_w + mu_lat * dn_w) - pt_a * dp[SHAPE][0] - pt_r * dp[SHAPE][2])
+            df_l = (
+                -(c_long + t_l) * du.real
+                - dp[C_LONG] * u.real
+                - pl_mu * (dp[MU_LONG] * n_w + mu_long * dn_w)
+                - pl_a * dp[SHAPE][1]
+            )
+            df_t = (
+                -(c_lat + t_t) * du.imag
+                - dp[C_LAT] * u.imag
+                - pt_mu * (dp[MU_LAT] * n_w + mu_lat * dn_w)
+                - pt_a * dp[SHAPE][0]
+                - pt_r * dp[SHAPE][2]
+            )
             for a in range(spans[w]):
                 dlocal_a = dlocal[d, w, a] - 1j * local[w, a] * dtoe
                 dF[a] += dlocal_a.real * f_l + dlocal_a.imag * f_t + jac_long[w, a] * df_l + jac_lat[w, a] * df_t
         for j in range(3, nv):
             if free[j - 3]:
-                dF[j] -= dp[JOINT_COULOMB] * v_plus[j] / np.sqrt(v_plus[j] ** 2 + JOINT_EPS_RAD_S ** 2)
+                dF[j] -= dp[JOINT_COULOMB] * v_plus[j] / np.sqrt(v_plus[j] ** 2 + JOINT_EPS_RAD_S**2)
             dF[j] += linear[j] * (dcommand[d, j - 3] + kd * dx[d, nv + j])
         head = dp[HEAD_MU] * params[HEAD_NORMAL] + params[HEAD_MU] * dp[HEAD_NORMAL]
         if head != 0.0:
@@ -245,9 +326,34 @@ def _rows(w, num):
 
 
 @jit
-def step_tangent(x, force_plus, v_star, v_new, S, dparams, dgravity, dcommand, dt, params, servo_command, servo_power,
-                 servo_gains, mass, yaw_inertia, com, gravity_xy, in_plane, lower, upper, locked,
-                 joint_in_parent, joint_in_child, wheel_module, wheel_offset, wheel_toe):
+def step_tangent(
+    x,
+    force_plus,
+    v_star,
+    v_new,
+    S,
+    dparams,
+    dgravity,
+    dcommand,
+    dt,
+    params,
+    servo_command,
+    servo_power,
+    servo_gains,
+    mass,
+    yaw_inertia,
+    com,
+    gravity_xy,
+    in_plane,
+    lower,
+    upper,
+    locked,
+    joint_in_parent,
+    joint_in_child,
+    wheel_module,
+    wheel_offset,
+    wheel_toe,
+):
     """d x_{k+1} (P, 32) of step.py's plant_step along state directions S (P, 32), parameter directions dparams,
     gravity's floor components dgravity (P, 2) and command directions dcommand, given the step's forces and
     velocities: the friction solve's v+ = v + dt M^-1 force_plus, v* (the free motion) and v_new (after locked
@@ -258,16 +364,36 @@ def step_tangent(x, force_plus, v_star, v_new, S, dparams, dgravity, dcommand, d
     M, bias, gravity = chain_terms(x, mass, yaw_inertia, com, joint_in_parent, joint_in_child, gravity_xy)
     v_plus = v + dt * spd_solve(M, force_plus)
     other = -bias + (gravity if in_plane else np.zeros(nv))
-    mw, dbias, dgravity_x = chain_tangent(x, S, _rows(v_plus - v, num), mass, yaw_inertia, com, joint_in_parent,
-                                        joint_in_child, gravity_xy)
+    mw, dbias, dgravity_x = chain_tangent(
+        x, S, _rows(v_plus - v, num), mass, yaw_inertia, com, joint_in_parent, joint_in_child, gravity_xy
+    )
     dother = -dbias + (dgravity_x if in_plane else np.zeros_like(dbias))
     for d in range(num):
         if dgravity[d, 0] != 0.0 or dgravity[d, 1] != 0.0:  # the generalized gravity force is linear in the field
-            dother[d] += chain_terms(x, mass, yaw_inertia, com, joint_in_parent, joint_in_child,
-                                     dgravity[d, 0] + 1j * dgravity[d, 1])[2]
-    dv = friction_tangent(x, S, dparams, dcommand, dother, mw, v_plus, M, other, dt, params, servo_command,
-                          servo_power, servo_gains, joint_in_parent, joint_in_child, wheel_module, wheel_offset,
-                          wheel_toe)
+            dother[d] += chain_terms(
+                x, mass, yaw_inertia, com, joint_in_parent, joint_in_child, dgravity[d, 0] + 1j * dgravity[d, 1]
+            )[2]
+    dv = friction_tangent(
+        x,
+        S,
+        dparams,
+        dcommand,
+        dother,
+        mw,
+        v_plus,
+        M,
+        other,
+        dt,
+        params,
+        servo_command,
+        servo_power,
+        servo_gains,
+        joint_in_parent,
+        joint_in_child,
+        wheel_module,
+        wheel_offset,
+        wheel_toe,
+    )
     # Locked joints and the limits' active set (step._limit_solve): (A_r + D) v_r = (A v*)_r + h, with D = 1/R
     # and h = sign v_hat / R on the active constraints.
     dofs, signs, v_hat, r_inv, count = limit_constraints(x[:nv], v, v_star, M, dt, lower, upper, locked)
@@ -281,25 +407,27 @@ def step_tangent(x, force_plus, v_star, v_new, S, dparams, dgravity, dcommand, d
         position = np.full(nv, -1, dtype=np.int64)
         position[index] = np.arange(index.shape[0])
         matrix = M[index][:, index].copy()
-        mwn = chain_tangent(x, S, _rows(v_star - v_new, num), mass, yaw_inertia, com, joint_in_parent,
-                            joint_in_child, gravity_xy)[0]
+        mwn = chain_tangent(
+            x, S, _rows(v_star - v_new, num), mass, yaw_inertia, com, joint_in_parent, joint_in_child, gravity_xy
+        )[0]
         rhs = np.empty((num, index.shape[0]))
         for d in range(num):
             rhs[d] = (mwn[d] + M @ dv[d])[index]
-        c = LIMIT_BETA ** 2 / (4.0 * np.pi ** 2)
+        c = LIMIT_BETA**2 / (4.0 * np.pi**2)
         for i in range(count):
             if not active[i]:
                 continue
             k, r, R = dofs[i], position[dofs[i]], 1.0 / r_inv[i]
             unit = np.zeros((num, nv))
             unit[:, k] = 1.0
-            dA_kk = chain_tangent(x, S, unit, mass, yaw_inertia, com, joint_in_parent, joint_in_child,
-                                  gravity_xy)[0][:, k]
+            dA_kk = chain_tangent(x, S, unit, mass, yaw_inertia, com, joint_in_parent, joint_in_child, gravity_xy)[0][
+                :, k
+            ]
             matrix[r, r] += r_inv[i]
             for d in range(num):
                 dR = -c * dA_kk[d] / M[k, k] ** 2 if c / M[k, k] > rigid_regularization(dt) else 0.0
                 dv_hat = -signs[i] * S[d, k] / (2.0 * dt)
-                rhs[d, r] += signs[i] * (dv_hat / R - v_hat[i] * dR / R ** 2) + dR / R ** 2 * v_new[k]
+                rhs[d, r] += signs[i] * (dv_hat / R - v_hat[i] * dR / R**2) + dR / R**2 * v_new[k]
         for d in range(num):
             solved = spd_solve(matrix, rhs[d])
             dv[d, :] = 0.0

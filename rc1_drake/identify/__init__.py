@@ -11,11 +11,30 @@ from .heldout import HeldOut, held_out_errors, split_trials
 from .program import ProgramResult, fit_program, identify_equation_error, identify_program, screen, seeded_start
 from .run import METHODS, Identification, identify
 
-__all__ = ["INPUT_NOISE_SAMPLES", "METHODS", "AvsIteration", "AvsResult", "Eq6Objective", "HeldOut", "Identification",
-           "ProgramResult", "avs",
-           "avs_candidates", "avs_figure", "fit_program", "friction_to_yaml", "held_out_errors", "identify_avs",
-           "identify", "identify_equation_error", "identify_program", "load_friction_file", "screen", "seeded_start",
-           "split_trials"]
+__all__ = [
+    "INPUT_NOISE_SAMPLES",
+    "METHODS",
+    "AvsIteration",
+    "AvsResult",
+    "Eq6Objective",
+    "HeldOut",
+    "Identification",
+    "ProgramResult",
+    "avs",
+    "avs_candidates",
+    "avs_figure",
+    "fit_program",
+    "friction_to_yaml",
+    "held_out_errors",
+    "identify_avs",
+    "identify",
+    "identify_equation_error",
+    "identify_program",
+    "load_friction_file",
+    "screen",
+    "seeded_start",
+    "split_trials",
+]
 
 
 def friction_to_yaml(friction: Friction, effects=None) -> str:

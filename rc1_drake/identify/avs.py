@@ -7,7 +7,6 @@ one iteration to the next. The objective is the mean paper Eq. 6 error of the tr
 import dataclasses
 import math
 import os
-from typing import Dict, List, Optional
 
 import numpy as np
 
@@ -35,9 +34,9 @@ class Eq6Objective:
         self.evaluator = Evaluator(executor, checkpoint=checkpoint)
         self.effects = effects
         self.simulations = 0
-        self._cache: Dict[tuple, float] = {}
+        self._cache: dict[tuple, float] = {}
 
-    def per_trial(self, friction: Friction, effects=None) -> List[float]:
+    def per_trial(self, friction: Friction, effects=None) -> list[float]:
         jobs = [(t, friction, with_fixed(self.effects, effects)) for t in self.trials]
         errors = self.evaluator.map(eq6_error, jobs, "Eq. 6 errors")
         self.simulations += len(self.trials)
@@ -54,8 +53,8 @@ class Eq6Objective:
 class AvsIteration:
     iteration: int  # 1-based
     parameter: str
-    candidates: List[float]
-    errors: List[float]  # mean Eq. 6 error at each candidate
+    candidates: list[float]
+    errors: list[float]  # mean Eq. 6 error at each candidate
     best: float
     friction: Friction  # the set after this iteration
     error: float  # its mean Eq. 6 error
@@ -65,7 +64,7 @@ class AvsIteration:
 class AvsResult:
     start: Friction
     start_error: float
-    iterations: List[AvsIteration]
+    iterations: list[AvsIteration]
     simulations: int
 
     @property
@@ -84,20 +83,27 @@ class AvsResult:
         for name in FRICTION_NAMES:
             cells = "".join(
                 f"{('*' if it.parameter == name else '') + format(getattr(it.friction, name), '.4g'):>9}"
-                for it in self.iterations)
+                for it in self.iterations
+            )
             lines.append(f"{name:<9}{getattr(self.start, name):>9.4g}{cells}")
         lines.append(f"{'Eq.6 %':<9}{self.start_error:>9.2f}" + "".join(f"{it.error:>9.2f}" for it in self.iterations))
         return "\n".join(lines)
 
     def to_json(self) -> dict:
-        return {"method": "avs", "start": dataclasses.asdict(self.start), "start_error_pct": self.start_error,
-                "friction": dataclasses.asdict(self.friction), "error_pct": self.error,
-                "simulations": self.simulations,
-                "iterations": [{**dataclasses.asdict(it), "friction": dataclasses.asdict(it.friction)}
-                               for it in self.iterations]}
+        return {
+            "method": "avs",
+            "start": dataclasses.asdict(self.start),
+            "start_error_pct": self.start_error,
+            "friction": dataclasses.asdict(self.friction),
+            "error_pct": self.error,
+            "simulations": self.simulations,
+            "iterations": [
+                {**dataclasses.asdict(it), "friction": dataclasses.asdict(it.friction)} for it in self.iterations
+            ],
+        }
 
 
-def avs_candidates(value: float, parameter: Parameter, factors=(0.5, 0.75, 1.25, 1.5)) -> List[float]:
+def avs_candidates(value: float, parameter: Parameter, factors=(0.5, 0.75, 1.25, 1.5)) -> list[float]:
     """Candidates around the incumbent, within the bounds (the incumbent itself is always kept)."""
     base = value if value > 0 else 0.1 * (parameter.upper - parameter.lower)
     out = {min(max(base * f, parameter.lower), parameter.upper) for f in factors}
@@ -105,8 +111,15 @@ def avs_candidates(value: float, parameter: Parameter, factors=(0.5, 0.75, 1.25,
     return sorted(out)
 
 
-def avs(objective, *, start: Friction = PAPER_MANUAL, iterations: int = 10,
-        parameters: Optional[List[Parameter]] = None, factors=(0.5, 0.75, 1.25, 1.5), progress=None) -> AvsResult:
+def avs(
+    objective,
+    *,
+    start: Friction = PAPER_MANUAL,
+    iterations: int = 10,
+    parameters: list[Parameter] | None = None,
+    factors=(0.5, 0.75, 1.25, 1.5),
+    progress=None,
+) -> AvsResult:
     """The paper's AVS: iteration k varies the k-th free coefficient (cycling in the paper's order
     c_joint, mu_lat, mu_long, c_lat, c_long) over candidate values and keeps the best."""
     parameters = [p for p in (parameters or DEFAULT_PARAMETERS) if not p.frozen]
@@ -119,24 +132,45 @@ def avs(objective, *, start: Friction = PAPER_MANUAL, iterations: int = 10,
         parameter = parameters[k % len(parameters)]
         value = getattr(current, parameter.name)
         candidates = [value] + avs_candidates(value, parameter, factors)
-        errors = [current_error] + [objective(dataclasses.replace(current, **{parameter.name: c}))
-                                    for c in candidates[1:]]
+        errors = [current_error] + [
+            objective(dataclasses.replace(current, **{parameter.name: c})) for c in candidates[1:]
+        ]
         best = int(np.argmin(errors))
         current = dataclasses.replace(current, **{parameter.name: candidates[best]})
         current_error = errors[best]
         order = np.argsort(candidates)
-        history.append(AvsIteration(iteration=k + 1, parameter=parameter.name,
-                                    candidates=[candidates[i] for i in order], errors=[errors[i] for i in order],
-                                    best=candidates[best], friction=current, error=current_error))
+        history.append(
+            AvsIteration(
+                iteration=k + 1,
+                parameter=parameter.name,
+                candidates=[candidates[i] for i in order],
+                errors=[errors[i] for i in order],
+                best=candidates[best],
+                friction=current,
+                error=current_error,
+            )
+        )
         if progress:
             progress(k + 1, iterations, parameter.name, current_error)
-    return AvsResult(start=start, start_error=start_error, iterations=history,
-                     simulations=getattr(objective, "simulations", 0))
+    return AvsResult(
+        start=start, start_error=start_error, iterations=history, simulations=getattr(objective, "simulations", 0)
+    )
 
 
-def identify_avs(campaign, *, trials=None, iterations=10, workers=None, scheduler=None, start=PAPER_MANUAL,
-                 parameters=None, progress=None, effects=None, input_noise_samples=INPUT_NOISE_SAMPLES,
-                 checkpoint=None):
+def identify_avs(
+    campaign,
+    *,
+    trials=None,
+    iterations=10,
+    workers=None,
+    scheduler=None,
+    start=PAPER_MANUAL,
+    parameters=None,
+    progress=None,
+    effects=None,
+    input_noise_samples=INPUT_NOISE_SAMPLES,
+    checkpoint=None,
+):
     """AVS on the chosen trials (the model with `effects`, held fixed), then the uncertainty of its
     result (uncertainty(), with `input_noise_samples`): (AvsResult, Uncertainty). `checkpoint`: an
     evaluate.Checkpoint that keeps every replay's result (a rerun resumes)."""
@@ -145,8 +179,7 @@ def identify_avs(campaign, *, trials=None, iterations=10, workers=None, schedule
         objective = Eq6Objective(chosen, executor=executor, effects=effects, checkpoint=checkpoint)
         result = avs(objective, start=start, iterations=iterations, parameters=parameters, progress=progress)
         residuals = CampaignResiduals(chosen, executor=executor, effects=effects, checkpoint=checkpoint)
-        spread = uncertainty(residuals, result.friction,
-                             parameters=parameters, input_noise_samples=input_noise_samples)
+        spread = uncertainty(residuals, result.friction, parameters=parameters, input_noise_samples=input_noise_samples)
     return result, spread
 
 

@@ -46,7 +46,6 @@ What it cannot see, and why:
 import dataclasses
 import math
 import time
-from typing import Dict, List, Optional
 
 import numpy as np
 
@@ -63,8 +62,10 @@ GATE_EPS = 5.0  # a slip below GATE_EPS * eps is in the smoothed sign's linear r
 GATE_SIGMAS = 3.0  # ... or below this many standard deviations of its noise
 # Makes the model's wheels slip sideways (measured), but needs 188 deg/s of joint speed and more torque than
 # RC1's servos give (140 deg/s, 1.19 N m): the robot itself cannot run it.
-SLIP_GAIT = ("a standing wave (phase_step_deg 0) at 360 deg/s, beyond RC1's servos (188 of 140 deg/s); "
-             "within them, fit the friction by simulation (--method program)")
+SLIP_GAIT = (
+    "a standing wave (phase_step_deg 0) at 360 deg/s, beyond RC1's servos (188 of 140 deg/s); "
+    "within them, fit the friction by simulation (--method program)"
+)
 
 
 @dataclasses.dataclass
@@ -88,8 +89,9 @@ def _spline_derivatives(t, y, t_eval):
     return spline(t_eval), spline.derivative(1)(t_eval), spline.derivative(2)(t_eval)
 
 
-def trajectory_samples(trial, *, trim_s: float = TRIM_S, rng=None, extra_noise=None,
-                       every: int = 1) -> Optional[TrajectorySamples]:
+def trajectory_samples(
+    trial, *, trim_s: float = TRIM_S, rng=None, extra_noise=None, every: int = 1
+) -> TrajectorySamples | None:
     """Smoothed q, q_dot, q_ddot of a working-joint trial at the camera's samples; None when the trial
     has no camera or a failed joint. `extra_noise` = (camera_m, camera_yaw_rad, potentiometer_rad) adds
     that much noise to the measurements first (for the SIMEX bias estimate); `every` = k keeps every
@@ -125,7 +127,7 @@ def trajectory_samples(trial, *, trim_s: float = TRIM_S, rng=None, extra_noise=N
     return TrajectorySamples(trial_id=trial.trial_id, t=te, q=q, v=v, a=a)
 
 
-def _wheel_toe_only(effects: Dict[str, float]) -> float:
+def _wheel_toe_only(effects: dict[str, float]) -> float:
     """The wheel toe (rad): the one effect these rows model; any other is refused, not ignored."""
     from ..effects import active, model_setup
 
@@ -138,7 +140,7 @@ def _wheel_toe_only(effects: Dict[str, float]) -> float:
 class InverseDynamics:
     """The base rows of the equations of motion, evaluated by the plant, and their friction regressors."""
 
-    def __init__(self, sgn_smoothing_m_s: float = 1e-3, effects: Optional[Dict[str, float]] = None):
+    def __init__(self, sgn_smoothing_m_s: float = 1e-3, effects: dict[str, float] | None = None):
         from pydrake.systems.framework import DiagramBuilder
 
         from ..friction import GRAVITY_M_S2
@@ -162,8 +164,14 @@ class InverseDynamics:
         jp, jc, module, offset, _ = self.rc1.geometry.arrays
         n, w = len(samples.t), len(self.normal)
         scale = np.array([1.0, 1.0, 1.0 / YAW_ROW_M])
-        out = {"A": np.zeros((n, 3, len(WHEEL_NAMES))), "b": np.zeros((n, 3)), "u_long": np.zeros((n, w)),
-               "u_lat": np.zeros((n, w)), "g_long": np.zeros((n, w, 3)), "g_lat": np.zeros((n, w, 3))}
+        out = {
+            "A": np.zeros((n, 3, len(WHEEL_NAMES))),
+            "b": np.zeros((n, 3)),
+            "u_long": np.zeros((n, w)),
+            "u_lat": np.zeros((n, w)),
+            "g_long": np.zeros((n, w, 3)),
+            "g_lat": np.zeros((n, w, 3)),
+        }
         for k in range(n):
             x = np.concatenate([samples.q[k], samples.v[k]])
             self.plant.SetPositionsAndVelocities(self.context, x)
@@ -173,9 +181,14 @@ class InverseDynamics:
             local = np.conj(direction)[:, None] * jacobian
             g_long, g_lat = local.real[:, :3] * scale, local.imag[:, :3] * scale
             u_long, u_lat = local.real @ samples.v[k], local.imag @ samples.v[k]
-            out["A"][k] = -np.column_stack([g_lat.T @ (self.normal * smooth_sign(u_lat, self.eps)),
-                                            g_long.T @ (self.normal * smooth_sign(u_long, self.eps)),
-                                            g_lat.T @ u_lat, g_long.T @ u_long])
+            out["A"][k] = -np.column_stack(
+                [
+                    g_lat.T @ (self.normal * smooth_sign(u_lat, self.eps)),
+                    g_long.T @ (self.normal * smooth_sign(u_long, self.eps)),
+                    g_lat.T @ u_lat,
+                    g_long.T @ u_long,
+                ]
+            )
             out["u_long"][k], out["u_lat"][k], out["g_long"][k], out["g_lat"][k] = u_long, u_lat, g_long, g_lat
         return out
 
@@ -184,8 +197,12 @@ def _projected(rows: dict, gate_long: float, gate_lat: float):
     """Rows with the forces of non-slipping wheel directions projected out: (A, b, sample index)."""
     A_out, b_out, index = [], [], []
     for k in range(len(rows["b"])):
-        unknown = np.concatenate([rows["g_long"][k][np.abs(rows["u_long"][k]) < gate_long],
-                                  rows["g_lat"][k][np.abs(rows["u_lat"][k]) < gate_lat]])
+        unknown = np.concatenate(
+            [
+                rows["g_long"][k][np.abs(rows["u_long"][k]) < gate_long],
+                rows["g_lat"][k][np.abs(rows["u_lat"][k]) < gate_lat],
+            ]
+        )
         if len(unknown) >= 3:
             continue
         if len(unknown):
@@ -219,47 +236,60 @@ def _solve(A, b, lower, upper):
 @dataclasses.dataclass
 class EquationErrorResult:
     friction: Friction  # fitted wheel coefficients; c_joint (and frozen ones) as given at the start
-    names: List[str]  # the free wheel coefficients
-    standard_errors: List[float]  # inf where the rows do not constrain the coefficient
-    correlation: List[List[float]]
-    noise_bias: List[float]  # estimate with the noise doubled minus the estimate (one SIMEX step)
-    differentiation_bias: List[float]  # estimate from every other sample minus the estimate
-    identifiable: List[bool]
-    trials_used: List[str]
-    trials_skipped: List[str]  # failure trials or trials without a camera
+    names: list[str]  # the free wheel coefficients
+    standard_errors: list[float]  # inf where the rows do not constrain the coefficient
+    correlation: list[list[float]]
+    noise_bias: list[float]  # estimate with the noise doubled minus the estimate (one SIMEX step)
+    differentiation_bias: list[float]  # estimate from every other sample minus the estimate
+    identifiable: list[bool]
+    trials_used: list[str]
+    trials_skipped: list[str]  # failure trials or trials without a camera
     samples: int  # camera samples of the used trials
     samples_used: int  # samples with at most two non-slipping wheel directions
-    slip_gate_m_s: List[float]  # the largest gate (longitudinal, lateral) over the trials
+    slip_gate_m_s: list[float]  # the largest gate (longitudinal, lateral) over the trials
     residual_rms_N: float
     wall_time_s: float
     simulations: int = 0
 
-    def warnings(self) -> List[str]:
-        out = ["c_joint: not identifiable by equation error (it acts only in a failed joint, whose angle is not "
-               "measured); its value is the start value, not a fit"]
+    def warnings(self) -> list[str]:
+        out = [
+            "c_joint: not identifiable by equation error (it acts only in a failed joint, whose angle is not "
+            "measured); its value is the start value, not a fit"
+        ]
         if self.samples_used == 0:
-            out.append(f"no sample has fewer than three non-slipping wheel directions (slip gate "
-                       f"{1000 * max(self.slip_gate_m_s):.0f} mm/s): the wheels act as constraints and equation error "
-                       f"sees no friction coefficient in these trials; a gait whose wheels slip would ({SLIP_GAIT})")
-        for n, se, bias, dbias, ok in zip(self.names, self.standard_errors, self.noise_bias,
-                                          self.differentiation_bias, self.identifiable, strict=True):
+            out.append(
+                f"no sample has fewer than three non-slipping wheel directions (slip gate "
+                f"{1000 * max(self.slip_gate_m_s):.0f} mm/s): the wheels act as constraints and equation error "
+                f"sees no friction coefficient in these trials; a gait whose wheels slip would ({SLIP_GAIT})"
+            )
+        for n, se, bias, dbias, ok in zip(
+            self.names, self.standard_errors, self.noise_bias, self.differentiation_bias, self.identifiable, strict=True
+        ):
             if not ok and self.samples_used:
-                out.append(f"{n}: not identifiable by equation error from these trials (standard error "
-                           f"{_fmt(se)}, noise bias {_fmt(bias)}, differentiation bias {_fmt(dbias)} on "
-                           f"{getattr(self.friction, n):.4g}); its value is not a fit")
+                out.append(
+                    f"{n}: not identifiable by equation error from these trials (standard error "
+                    f"{_fmt(se)}, noise bias {_fmt(bias)}, differentiation bias {_fmt(dbias)} on "
+                    f"{getattr(self.friction, n):.4g}); its value is not a fit"
+                )
         return out
 
     def table(self) -> str:
-        lines = [f"{'coefficient':<12}{'value':>10}{'std. error':>12}{'95% interval':>24}{'noise bias':>12}"
-                 f"{'diff. bias':>12}  identifiable"]
-        for n, se, bias, dbias, ok in zip(self.names, self.standard_errors, self.noise_bias, self.differentiation_bias,
-                                          self.identifiable, strict=True):
+        lines = [
+            f"{'coefficient':<12}{'value':>10}{'std. error':>12}{'95% interval':>24}{'noise bias':>12}"
+            f"{'diff. bias':>12}  identifiable"
+        ]
+        for n, se, bias, dbias, ok in zip(
+            self.names, self.standard_errors, self.noise_bias, self.differentiation_bias, self.identifiable, strict=True
+        ):
             v = getattr(self.friction, n)
             ci = f"[{v - Z95 * se:.4g}, {v + Z95 * se:.4g}]" if math.isfinite(se) else "-"
-            lines.append(f"{n:<12}{v:>10.4g}{_fmt(se):>12}{ci:>24}{_fmt(bias):>12}{_fmt(dbias):>12}  "
-                         f"{'yes' if ok else 'NO'}")
-        lines.append(f"{self.samples_used} of {self.samples} samples used, trials {', '.join(self.trials_used) or '-'}"
-                     f"; skipped (failed joint or no camera): {', '.join(self.trials_skipped) or '-'}")
+            lines.append(
+                f"{n:<12}{v:>10.4g}{_fmt(se):>12}{ci:>24}{_fmt(bias):>12}{_fmt(dbias):>12}  {'yes' if ok else 'NO'}"
+            )
+        lines.append(
+            f"{self.samples_used} of {self.samples} samples used, trials {', '.join(self.trials_used) or '-'}"
+            f"; skipped (failed joint or no camera): {', '.join(self.trials_skipped) or '-'}"
+        )
         return "\n".join(lines)
 
     def to_json(self) -> dict:
@@ -294,9 +324,17 @@ def _clustered_fit(A, b, cluster, lower, upper):
     return theta, cov, float(np.sqrt(np.mean(r**2))) if len(r) else math.nan, null
 
 
-def fit_equation_error(trials, *, start: Friction, parameters=None, sgn_smoothing_m_s: float = 1e-3,
-                       effects: Optional[Dict[str, float]] = None, noise=None,
-                       seed: int = 0, max_relative_error: float = 0.3) -> EquationErrorResult:
+def fit_equation_error(
+    trials,
+    *,
+    start: Friction,
+    parameters=None,
+    sgn_smoothing_m_s: float = 1e-3,
+    effects: dict[str, float] | None = None,
+    noise=None,
+    seed: int = 0,
+    max_relative_error: float = 0.3,
+) -> EquationErrorResult:
     """Fit the free wheel coefficients of `parameters` from the camera and potentiometer samples of the
     working-joint trials among `trials` (module docstring). `noise` (a synthesize.Noise; default: the
     sensors of data/README.md): its camera and potentiometer deviations are added once more to measure
@@ -328,13 +366,21 @@ def fit_equation_error(trials, *, start: Friction, parameters=None, sgn_smoothin
         noisier = trajectory_samples(trial, rng=rng, extra_noise=extra_noise)
         sparser = trajectory_samples(trial, every=2)
         rows = [dynamics.rows(measured), dynamics.rows(noisier), dynamics.rows(sparser)]
-        gate = [max(GATE_EPS * sgn_smoothing_m_s, GATE_SIGMAS * float(np.sqrt(np.mean((rows[1][u] - rows[0][u]) ** 2))))
-                for u in ("u_long", "u_lat")]
+        gate = [
+            max(GATE_EPS * sgn_smoothing_m_s, GATE_SIGMAS * float(np.sqrt(np.mean((rows[1][u] - rows[0][u]) ** 2))))
+            for u in ("u_long", "u_lat")
+        ]
         gates.append(gate)
         for blocks, r, t in zip(passes, rows, (measured.t, noisier.t, sparser.t), strict=True):
             A, b, index = _projected(r, *gate)
-            blocks.append((A[:, cols], b - A @ fixed, [f"{trial.trial_id}/{int(t[i] // BLOCK_S)}" for i in index],
-                           len(np.unique(index))))
+            blocks.append(
+                (
+                    A[:, cols],
+                    b - A @ fixed,
+                    [f"{trial.trial_id}/{int(t[i] // BLOCK_S)}" for i in index],
+                    len(np.unique(index)),
+                )
+            )
         used.append(trial.trial_id)
         total += len(measured.t)
     if not used:
@@ -346,8 +392,12 @@ def fit_equation_error(trials, *, start: Friction, parameters=None, sgn_smoothin
         cluster = np.array(sum((blk[2] for blk in blocks), []))
         fits.append(_clustered_fit(A, b, cluster, lower, upper) if len(b) >= 2 * len(free) else None)
     if fits[0] is None:
-        theta, se, corr, rms = (np.array([getattr(start, n) for n in free]), np.full(len(free), math.inf),
-                                np.eye(len(free)), math.nan)
+        theta, se, corr, rms = (
+            np.array([getattr(start, n) for n in free]),
+            np.full(len(free), math.inf),
+            np.eye(len(free)),
+            math.nan,
+        )
         bias = dbias = np.full(len(free), math.nan)
         samples_used = 0
     else:
@@ -357,12 +407,24 @@ def fit_equation_error(trials, *, start: Friction, parameters=None, sgn_smoothin
         corr = np.where(np.isfinite(se)[:, None] & np.isfinite(se)[None, :], cov / np.outer(d, d), 0.0)
         bias, dbias = (fit[0] - theta if fit is not None else np.full(len(free), math.inf) for fit in fits[1:])
         samples_used = sum(blk[3] for blk in passes[0])
-    identifiable = [bool(max(s, abs(b1), abs(b2)) < max_relative_error * abs(v))
-                    for v, s, b1, b2 in zip(theta, se, bias, dbias, strict=True)]
+    identifiable = [
+        bool(max(s, abs(b1), abs(b2)) < max_relative_error * abs(v))
+        for v, s, b1, b2 in zip(theta, se, bias, dbias, strict=True)
+    ]
     friction = dataclasses.replace(start, **{n: float(v) for n, v in zip(free, theta, strict=True)})
-    return EquationErrorResult(friction=friction, names=free, standard_errors=[float(x) for x in se],
-                               correlation=np.round(corr, 4).tolist(), noise_bias=[float(x) for x in bias],
-                               differentiation_bias=[float(x) for x in dbias],
-                               identifiable=identifiable, trials_used=used, trials_skipped=skipped, samples=total,
-                               samples_used=samples_used, slip_gate_m_s=np.max(gates, axis=0).tolist(),
-                               residual_rms_N=rms, wall_time_s=time.perf_counter() - began)
+    return EquationErrorResult(
+        friction=friction,
+        names=free,
+        standard_errors=[float(x) for x in se],
+        correlation=np.round(corr, 4).tolist(),
+        noise_bias=[float(x) for x in bias],
+        differentiation_bias=[float(x) for x in dbias],
+        identifiable=identifiable,
+        trials_used=used,
+        trials_skipped=skipped,
+        samples=total,
+        samples_used=samples_used,
+        slip_gate_m_s=np.max(gates, axis=0).tolist(),
+        residual_rms_N=rms,
+        wall_time_s=time.perf_counter() - began,
+    )

@@ -2,7 +2,6 @@
 
 import dataclasses
 import os
-from typing import List, Optional
 
 import numpy as np
 
@@ -15,17 +14,22 @@ from .avs import Eq6Objective
 class HeldOut:
     """Mean Eq. 6 error (%) of the result on the trials it was fitted to and on held-out trials."""
 
-    estimation_trials: List[str]
-    validation_trials: List[str]
+    estimation_trials: list[str]
+    validation_trials: list[str]
     estimation_error_pct: float
-    validation_error_pct: Optional[float]  # None without held-out trials
+    validation_error_pct: float | None  # None without held-out trials
     simulations: int
 
     def line(self) -> str:
-        held = ("no held-out trials" if self.validation_error_pct is None else
-                f"held-out {self.validation_error_pct:.2f}% ({len(self.validation_trials)} trials)")
-        return (f"mean Eq. 6 error: estimation {self.estimation_error_pct:.2f}% ({len(self.estimation_trials)} trials), "
-                f"{held}")
+        held = (
+            "no held-out trials"
+            if self.validation_error_pct is None
+            else f"held-out {self.validation_error_pct:.2f}% ({len(self.validation_trials)} trials)"
+        )
+        return (
+            f"mean Eq. 6 error: estimation {self.estimation_error_pct:.2f}% ({len(self.estimation_trials)} trials), "
+            f"{held}"
+        )
 
 
 def split_trials(campaign, *, trials=None, validation=None) -> tuple:
@@ -41,15 +45,18 @@ def split_trials(campaign, *, trials=None, validation=None) -> tuple:
     return estimation, held
 
 
-def held_out_errors(estimation, validation, friction: Friction, *, workers=None, scheduler=None,
-                    effects=None, checkpoint=None) -> HeldOut:
+def held_out_errors(
+    estimation, validation, friction: Friction, *, workers=None, scheduler=None, effects=None, checkpoint=None
+) -> HeldOut:
     """Eq. 6 errors of `friction` (and `effects`) on the estimation and the validation trials (split_trials)."""
     everything = estimation + validation
     with make_executor(workers=workers or min(os.cpu_count() or 1, len(everything)), scheduler=scheduler) as executor:
         errors = Eq6Objective(everything, executor=executor, effects=effects, checkpoint=checkpoint).per_trial(friction)
     k = len(estimation)
-    return HeldOut(estimation_trials=[t.trial_id for t in estimation],
-                   validation_trials=[t.trial_id for t in validation],
-                   estimation_error_pct=float(np.mean(errors[:k])),
-                   validation_error_pct=float(np.mean(errors[k:])) if validation else None,
-                   simulations=len(everything))
+    return HeldOut(
+        estimation_trials=[t.trial_id for t in estimation],
+        validation_trials=[t.trial_id for t in validation],
+        estimation_error_pct=float(np.mean(errors[:k])),
+        validation_error_pct=float(np.mean(errors[k:])) if validation else None,
+        simulations=len(everything),
+    )

@@ -5,7 +5,7 @@ puts the coefficients it identifies."""
 import dataclasses
 import math
 import os
-from typing import Dict, List, Optional
+from typing import Optional
 
 import numpy as np
 
@@ -29,20 +29,37 @@ class ProgramResult:
     iterations: int
     simulations: int
     jacobian: np.ndarray = dataclasses.field(repr=False, default=None)  # d r / d u at the result
-    effects: Dict[str, float] = dataclasses.field(default_factory=dict)  # the model's effects at the result
-    held: List[str] = dataclasses.field(default_factory=list)  # free, but not identifiable at the start: not fitted
+    effects: dict[str, float] = dataclasses.field(default_factory=dict)  # the model's effects at the result
+    held: list[str] = dataclasses.field(default_factory=list)  # free, but not identifiable at the start: not fitted
     screening: Optional["Uncertainty"] = dataclasses.field(repr=False, default=None)
 
     def to_json(self) -> dict:
-        return {"method": "program", "solver": "snopt", "start": dataclasses.asdict(self.start),
-                "friction": dataclasses.asdict(self.friction), "effects": self.effects, "cost_start": self.cost_start,
-                "cost": self.cost, "iterations": self.iterations, "simulations": self.simulations,
-                "held_at_start": self.held,
-                "screening": None if self.screening is None else dataclasses.asdict(self.screening)}
+        return {
+            "method": "program",
+            "solver": "snopt",
+            "start": dataclasses.asdict(self.start),
+            "friction": dataclasses.asdict(self.friction),
+            "effects": self.effects,
+            "cost_start": self.cost_start,
+            "cost": self.cost,
+            "iterations": self.iterations,
+            "simulations": self.simulations,
+            "held_at_start": self.held,
+            "screening": None if self.screening is None else dataclasses.asdict(self.screening),
+        }
 
 
-def fit_program(residuals, *, start: Friction, parameters=None, log_step: float = 0.02, max_iterations: int = 10,
-                tolerance: float = 1e-2, on_iteration=None, start_effects=None) -> ProgramResult:
+def fit_program(
+    residuals,
+    *,
+    start: Friction,
+    parameters=None,
+    log_step: float = 0.02,
+    max_iterations: int = 10,
+    tolerance: float = 1e-2,
+    on_iteration=None,
+    start_effects=None,
+) -> ProgramResult:
     """Least squares of the standardized residuals (final position, yaw rate, camera path) over the log
     of each free friction coefficient and the value of each free effect parameter (scaled by its range),
     within bounds: Levenberg-Marquardt iterations whose bounded steps are Drake MathematicalPrograms
@@ -53,17 +70,33 @@ def fit_program(residuals, *, start: Friction, parameters=None, log_step: float 
     free = [p for p in (parameters or DEFAULT_PARAMETERS) if not p.frozen]
     start_effects = dict(start_effects or {})
     span = np.array([1.0 if p.is_friction else p.upper - p.lower for p in free])
-    base = np.array([max(getattr(start, p.name), 1e-3 * (p.upper - p.lower)) if p.is_friction
-                     else min(max(parameter_value(p.name, start, start_effects), p.lower), p.upper) for p in free])
-    lower = np.array([math.log(max(p.lower, 1e-6) / b) if p.is_friction else (p.lower - b) / s
-                      for p, b, s in zip(free, base, span, strict=True)])
-    upper = np.array([math.log(p.upper / b) if p.is_friction else (p.upper - b) / s
-                      for p, b, s in zip(free, base, span, strict=True)])
+    base = np.array(
+        [
+            max(getattr(start, p.name), 1e-3 * (p.upper - p.lower))
+            if p.is_friction
+            else min(max(parameter_value(p.name, start, start_effects), p.lower), p.upper)
+            for p in free
+        ]
+    )
+    lower = np.array(
+        [
+            math.log(max(p.lower, 1e-6) / b) if p.is_friction else (p.lower - b) / s
+            for p, b, s in zip(free, base, span, strict=True)
+        ]
+    )
+    upper = np.array(
+        [
+            math.log(p.upper / b) if p.is_friction else (p.upper - b) / s
+            for p, b, s in zip(free, base, span, strict=True)
+        ]
+    )
     start_sims = getattr(residuals, "simulations", 0)
 
     def model_at(u):
-        values = {p.name: float(b * math.exp(x) if p.is_friction else b + s * x)
-                  for p, b, s, x in zip(free, base, span, u, strict=True)}
+        values = {
+            p.name: float(b * math.exp(x) if p.is_friction else b + s * x)
+            for p, b, s, x in zip(free, base, span, u, strict=True)
+        }
         return with_values(start, start_effects, values)
 
     def friction_at(u):
@@ -78,15 +111,24 @@ def fit_program(residuals, *, start: Friction, parameters=None, log_step: float 
         if not exact:
             return np.column_stack([(residuals(*model_at(u + log_step * e)) - r) / log_step for e in np.eye(len(u))])
         _, by_value = residuals.with_jacobian(*model_at(u), names)
-        scale = np.array([b * math.exp(x) if p.is_friction else s for p, b, s, x in zip(free, base, span, u, strict=True)])
+        scale = np.array(
+            [b * math.exp(x) if p.is_friction else s for p, b, s, x in zip(free, base, span, u, strict=True)]
+        )
         return by_value * scale
 
     u = np.zeros(len(free))
     r = residuals(*model_at(u))
     cost_start = cost = 0.5 * float(r @ r)
     if not free:
-        return ProgramResult(start=start, friction=start, cost_start=cost, cost=cost, iterations=0,
-                             simulations=getattr(residuals, "simulations", 0) - start_sims, effects=start_effects)
+        return ProgramResult(
+            start=start,
+            friction=start,
+            cost_start=cost,
+            cost=cost,
+            iterations=0,
+            simulations=getattr(residuals, "simulations", 0) - start_sims,
+            effects=start_effects,
+        )
     damping, iterations = 1.0, 0
     jac = None
     for k in range(1, max_iterations + 1):
@@ -111,26 +153,46 @@ def fit_program(residuals, *, start: Friction, parameters=None, log_step: float 
         if improvement < tolerance or np.abs(step).max() < 1e-3:
             break
     friction, effects = model_at(u)
-    return ProgramResult(start=start, friction=friction, cost_start=cost_start, cost=cost,
-                         iterations=iterations, simulations=getattr(residuals, "simulations", 0) - start_sims,
-                         jacobian=jac, effects=effects)
+    return ProgramResult(
+        start=start,
+        friction=friction,
+        cost_start=cost_start,
+        cost=cost,
+        iterations=iterations,
+        simulations=getattr(residuals, "simulations", 0) - start_sims,
+        jacobian=jac,
+        effects=effects,
+    )
 
 
-def screen(residuals, start: Friction, *, parameters=None, effects=None,
-           input_noise_samples: int = INPUT_NOISE_SAMPLES) -> tuple:
+def screen(
+    residuals, start: Friction, *, parameters=None, effects=None, input_noise_samples: int = INPUT_NOISE_SAMPLES
+) -> tuple:
     """Identifiability first: the uncertainty at the start, and the parameters with every free one that
     it finds not identifiable frozen at its start value, so that the fit does not wander along
     directions the data do not see (and report a number for them). Returns (parameters, Uncertainty)."""
     parameters = parameters or DEFAULT_PARAMETERS
-    first = uncertainty(residuals, start, parameters=parameters, effects=effects,
-                        input_noise_samples=input_noise_samples)
+    first = uncertainty(
+        residuals, start, parameters=parameters, effects=effects, input_noise_samples=input_noise_samples
+    )
     hidden = {n for n, ok in zip(first.names, first.identifiable, strict=True) if not ok}
     return [dataclasses.replace(p, frozen=p.frozen or p.name in hidden) for p in parameters], first
 
 
-def identify_program(campaign, *, trials=None, workers=None, scheduler=None, start=PAPER_MANUAL, parameters=None,
-                     max_iterations=10, effects=None, screened=True, input_noise_samples=INPUT_NOISE_SAMPLES,
-                     checkpoint=None):
+def identify_program(
+    campaign,
+    *,
+    trials=None,
+    workers=None,
+    scheduler=None,
+    start=PAPER_MANUAL,
+    parameters=None,
+    max_iterations=10,
+    effects=None,
+    screened=True,
+    input_noise_samples=INPUT_NOISE_SAMPLES,
+    checkpoint=None,
+):
     """The program fit on the chosen trials (the model with `effects`, held fixed), then the uncertainty
     of its result over every originally free parameter. With `screened`, the parameters the start's
     uncertainty finds not identifiable stay at their start values (screen()); the result's warnings
@@ -140,8 +202,11 @@ def identify_program(campaign, *, trials=None, workers=None, scheduler=None, sta
     parameters = parameters or DEFAULT_PARAMETERS
     with make_executor(workers=workers or min(os.cpu_count() or 1, len(chosen)), scheduler=scheduler) as executor:
         residuals = CampaignResiduals(chosen, executor=executor, effects=effects, checkpoint=checkpoint)
-        fitted, first = (screen(residuals, start, parameters=parameters, input_noise_samples=input_noise_samples)
-                         if screened else (parameters, None))
+        fitted, first = (
+            screen(residuals, start, parameters=parameters, input_noise_samples=input_noise_samples)
+            if screened
+            else (parameters, None)
+        )
         result = fit_program(residuals, start=start, parameters=fitted, max_iterations=max_iterations)
         spread = uncertainty(residuals, result.friction, parameters=parameters, input_noise_samples=input_noise_samples)
     result.held = [p.name for p, q in zip(parameters, fitted, strict=True) if q.frozen and not p.frozen]
@@ -152,8 +217,7 @@ def identify_program(campaign, *, trials=None, workers=None, scheduler=None, sta
 
 def identify_equation_error(campaign, *, trials=None, start=PAPER_MANUAL, parameters=None, effects=None, seed=0):
     """The equation-error fit (equation_error.py) on the chosen trials: no simulation."""
-    return fit_equation_error(campaign.chosen(trials), start=start, parameters=parameters, effects=effects,
-                              seed=seed)
+    return fit_equation_error(campaign.chosen(trials), start=start, parameters=parameters, effects=effects, seed=seed)
 
 
 def seeded_start(campaign, *, trials=None, start=PAPER_MANUAL, parameters=None) -> tuple:

@@ -4,7 +4,7 @@ and its errors on held-out trials."""
 
 import dataclasses
 import time
-from typing import Callable, List, Optional
+from collections.abc import Callable
 
 from ..config import START_MODES, Friction
 from ..replay import fit_starts
@@ -25,13 +25,13 @@ METHODS = ("avs", "program", "equation-error")
 class Identification:
     method: str
     result: object  # AvsResult, ProgramResult or EquationErrorResult: .friction, .table() where it has one
-    uncertainty: Optional[Uncertainty]  # at the result (AVS and program)
-    warnings: List[str]
+    uncertainty: Uncertainty | None  # at the result (AVS and program)
+    warnings: list[str]
     held_out: HeldOut
-    effects: Optional[dict]  # the model's effects, held fixed
+    effects: dict | None  # the model's effects, held fixed
     simulations: int  # of the fit and its uncertainty
     wall_s: float  # of the fit and its uncertainty
-    notes: List[str] = dataclasses.field(default_factory=list)  # how the start was chosen
+    notes: list[str] = dataclasses.field(default_factory=list)  # how the start was chosen
     record: dict = dataclasses.field(default_factory=dict)  # the trials' fitted starts, equation error's start
     resumed: int = 0  # replays whose results came from the checkpoint of an interrupted run
 
@@ -44,34 +44,64 @@ class Identification:
         r = self.result
         lines = list(self.notes)
         if self.method == "avs":
-            lines += ["Friction identification by AVS (paper Table 1; * = the coefficient each iteration varied):",
-                      r.table()]
+            lines += [
+                "Friction identification by AVS (paper Table 1; * = the coefficient each iteration varied):",
+                r.table(),
+            ]
         elif self.method == "program":
-            lines.append(f"Friction identification by least squares ({r.iterations} iterations, cost "
-                         f"{r.cost_start:.1f} -> {r.cost:.1f}):")
+            lines.append(
+                f"Friction identification by least squares ({r.iterations} iterations, cost "
+                f"{r.cost_start:.1f} -> {r.cost:.1f}):"
+            )
         else:
-            lines += [f"Friction identification by equation error (inverse dynamics, {r.wall_time_s:.0f} s, no "
-                      "simulation):", r.table()]
+            lines += [
+                f"Friction identification by equation error (inverse dynamics, {r.wall_time_s:.0f} s, no simulation):",
+                r.table(),
+            ]
         if self.uncertainty is not None:
-            lines += ["", f"Uncertainty at the result (residual Jacobian; standardized residual RMS "
-                          f"{self.uncertainty.residual_rms:.2f}):", self.uncertainty.table()]
+            lines += [
+                "",
+                f"Uncertainty at the result (residual Jacobian; standardized residual RMS "
+                f"{self.uncertainty.residual_rms:.2f}):",
+                self.uncertainty.table(),
+            ]
         lines += [f"warning: {w}" for w in self.warnings]
         resumed = f" ({self.resumed} results from an interrupted run's checkpoint)" if self.resumed else ""
-        lines += [self.held_out.line(), f"fit: {self.simulations} simulations, {self.wall_s:.0f} s; errors: "
-                                        f"{self.held_out.simulations} more simulations{resumed}"]
+        lines += [
+            self.held_out.line(),
+            f"fit: {self.simulations} simulations, {self.wall_s:.0f} s; errors: "
+            f"{self.held_out.simulations} more simulations{resumed}",
+        ]
         return "\n".join(lines)
 
     def to_json(self) -> dict:
-        return {**self.record, **self.result.to_json(),
-                "uncertainty": dataclasses.asdict(self.uncertainty) if self.uncertainty else None,
-                "warnings": self.warnings, "simulations": self.simulations, "wall_time_s": self.wall_s,
-                "held_out": dataclasses.asdict(self.held_out)}
+        return {
+            **self.record,
+            **self.result.to_json(),
+            "uncertainty": dataclasses.asdict(self.uncertainty) if self.uncertainty else None,
+            "warnings": self.warnings,
+            "simulations": self.simulations,
+            "wall_time_s": self.wall_s,
+            "held_out": dataclasses.asdict(self.held_out),
+        }
 
 
-def identify(campaign, *, method: str = "avs", trials=None, validation=None, start: Optional[ModelFile] = None,
-             freeze=(), start_rates: str = "rest", iterations: int = 10,
-             input_noise_samples: int = INPUT_NOISE_SAMPLES, workers=None, scheduler=None,
-             progress: Optional[Callable] = None, checkpoint=None) -> Identification:
+def identify(
+    campaign,
+    *,
+    method: str = "avs",
+    trials=None,
+    validation=None,
+    start: ModelFile | None = None,
+    freeze=(),
+    start_rates: str = "rest",
+    iterations: int = 10,
+    input_noise_samples: int = INPUT_NOISE_SAMPLES,
+    workers=None,
+    scheduler=None,
+    progress: Callable | None = None,
+    checkpoint=None,
+) -> Identification:
     """Identify the free friction coefficients of `campaign`'s `trials` (all by default) by `method`, from `start`
     (a model file: its coefficients and its effects, which stay fixed; the paper's manual values by default, where
     the program fit starts from what equation error identifies), with the coefficients in `freeze` held; judged on
@@ -90,36 +120,69 @@ def identify(campaign, *, method: str = "avs", trials=None, validation=None, sta
     notes, record = [], {}
     if start_rates == "fit":
         campaign = fit_starts(campaign, friction=friction, effects=effects, workers=workers, scheduler=scheduler)
-        record["starts"] = {t.trial_id: dict(zip(START_NAMES, map(float, t.initial_head_rates), strict=True))
-                            for t in campaign.trials}
+        record["starts"] = {
+            t.trial_id: dict(zip(START_NAMES, map(float, t.initial_head_rates), strict=True)) for t in campaign.trials
+        }
     estimation, held = split_trials(campaign, trials=trials, validation=validation)
     began, spread = time.perf_counter(), None
     kept = Checkpoint(checkpoint) if checkpoint else None
     if method == "avs":
-        result, spread = identify_avs(campaign, trials=trials, iterations=iterations, workers=workers,
-                                      scheduler=scheduler, parameters=parameters, progress=progress, start=friction,
-                                      effects=effects, input_noise_samples=input_noise_samples, checkpoint=kept)
+        result, spread = identify_avs(
+            campaign,
+            trials=trials,
+            iterations=iterations,
+            workers=workers,
+            scheduler=scheduler,
+            parameters=parameters,
+            progress=progress,
+            start=friction,
+            effects=effects,
+            input_noise_samples=input_noise_samples,
+            checkpoint=kept,
+        )
     elif method == "program":
         if start is None:
             friction, seed = seeded_start(campaign, trials=trials, start=friction, parameters=parameters)
             if seed is not None:
                 used = [n for n, ok in zip(seed.names, seed.identifiable, strict=True) if ok]
-                notes.append(f"start: equation error identified {', '.join(used) or 'nothing'} "
-                             f"({seed.wall_time_s:.0f} s, no simulation); the rest from the paper's manual values")
+                notes.append(
+                    f"start: equation error identified {', '.join(used) or 'nothing'} "
+                    f"({seed.wall_time_s:.0f} s, no simulation); the rest from the paper's manual values"
+                )
                 record["equation_error_start"] = seed.to_json()
-        result, spread = identify_program(campaign, trials=trials, workers=workers, scheduler=scheduler,
-                                          parameters=parameters, max_iterations=iterations, start=friction,
-                                          effects=effects, input_noise_samples=input_noise_samples,
-                                          checkpoint=kept)
+        result, spread = identify_program(
+            campaign,
+            trials=trials,
+            workers=workers,
+            scheduler=scheduler,
+            parameters=parameters,
+            max_iterations=iterations,
+            start=friction,
+            effects=effects,
+            input_noise_samples=input_noise_samples,
+            checkpoint=kept,
+        )
     else:
-        result = identify_equation_error(campaign, trials=trials, start=friction, parameters=parameters,
-                                         effects=effects)
+        result = identify_equation_error(
+            campaign, trials=trials, start=friction, parameters=parameters, effects=effects
+        )
     warnings = spread.warnings() if spread is not None else result.warnings()
     if method == "program" and result.held:
         warnings.append(f"held at the start values (not identifiable at the start): {', '.join(result.held)}")
     simulations, wall = result.simulations + (spread.simulations if spread else 0), time.perf_counter() - began
-    errors = held_out_errors(estimation, held, result.friction, workers=workers, scheduler=scheduler, effects=effects,
-                             checkpoint=kept)
-    return Identification(method=method, result=result, uncertainty=spread, warnings=warnings, held_out=errors,
-                          effects=effects, simulations=simulations, wall_s=wall, notes=notes, record=record,
-                          resumed=kept.resumed if kept else 0)
+    errors = held_out_errors(
+        estimation, held, result.friction, workers=workers, scheduler=scheduler, effects=effects, checkpoint=kept
+    )
+    return Identification(
+        method=method,
+        result=result,
+        uncertainty=spread,
+        warnings=warnings,
+        held_out=errors,
+        effects=effects,
+        simulations=simulations,
+        wall_s=wall,
+        notes=notes,
+        record=record,
+        resumed=kept.resumed if kept else 0,
+    )

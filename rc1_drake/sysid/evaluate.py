@@ -6,8 +6,8 @@ interrupted resumes where it stopped.
 
 import hashlib
 import pickle
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable, Optional
 
 import numpy as np
 
@@ -89,8 +89,7 @@ class Evaluator:
     """Runs batches of jobs, function(*job), in this process or on an executor, counting them; with a
     `checkpoint`, a job whose result is on disk is not run again, and every new result goes there."""
 
-    def __init__(self, executor, progress: Optional[Callable[[str], None]] = None,
-                 checkpoint: Optional[Checkpoint] = None):
+    def __init__(self, executor, progress: Callable[[str], None] | None = None, checkpoint: Checkpoint | None = None):
         self.executor, self.progress, self.checkpoint, self.simulations = executor, progress, checkpoint, 0
 
     def map(self, function, jobs, what: str, *, keep: bool = True) -> list:

@@ -37,12 +37,12 @@ class CampaignResiduals:
         self.channels = np.concatenate([residual_channels(r) for r, _ in parts])
         return np.concatenate([r for r, _ in parts]), np.vstack([j for _, j in parts])
 
-    def input_noise(self, friction: Friction, effects=None, *, samples: int = INPUT_NOISE_SAMPLES,
-                    seed: int = 0) -> np.ndarray:
+    def input_noise(
+        self, friction: Friction, effects=None, *, samples: int = INPUT_NOISE_SAMPLES, seed: int = 0
+    ) -> np.ndarray:
         """Block-diagonal covariance of the stacked residuals that the angle noise in the replays' input
         causes, from `samples` resampled replays per trial (plus one unperturbed)."""
-        jobs = [(t, friction, with_fixed(self.effects, effects), samples, seed + k)
-                for k, t in enumerate(self.trials)]
+        jobs = [(t, friction, with_fixed(self.effects, effects), samples, seed + k) for k, t in enumerate(self.trials)]
         blocks = self.evaluator.map(input_noise_covariance, jobs, "input noise")
         self.simulations += (samples + 1) * len(self.trials)
         return block_diag(*blocks)

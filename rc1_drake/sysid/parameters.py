@@ -4,7 +4,6 @@ and the values a model takes when some of them are set.
 """
 
 import dataclasses
-from typing import Dict, List
 
 from ..config import FRICTION_NAMES, Friction
 from ..effects import LIBRARY, parameter
@@ -34,7 +33,7 @@ DEFAULT_PARAMETERS = [
 ]
 
 
-def effect_parameters(name: str) -> List[Parameter]:
+def effect_parameters(name: str) -> list[Parameter]:
     """The fitted parameters of effect `name`, with its bounds."""
     return [Parameter(p.key, p.lower, p.upper) for p in LIBRARY[name].fitted()]
 
@@ -46,10 +45,12 @@ def parameter_value(name: str, friction: Friction, effects=None) -> float:
     return float((effects or {}).get(name, parameter(name).default))
 
 
-def with_values(friction: Friction, effects, values: Dict[str, float]) -> tuple:
+def with_values(friction: Friction, effects, values: dict[str, float]) -> tuple:
     """(friction, effects) with `values` (friction coefficients and effect parameters by name) set."""
-    return (dataclasses.replace(friction, **{k: v for k, v in values.items() if k in FRICTION_NAMES}),
-            {**(effects or {}), **{k: v for k, v in values.items() if k not in FRICTION_NAMES}})
+    return (
+        dataclasses.replace(friction, **{k: v for k, v in values.items() if k in FRICTION_NAMES}),
+        {**(effects or {}), **{k: v for k, v in values.items() if k not in FRICTION_NAMES}},
+    )
 
 
 def with_fixed(fixed, effects) -> dict:

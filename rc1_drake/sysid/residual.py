@@ -21,8 +21,8 @@ def trial_residual(trial, run, until=None) -> np.ndarray:
 
     Why not both: the replayed yaw rate differs from a noise-free truth's by ~0.05 rad/s RMS whatever
     the friction (the smoothed potentiometer noise shakes the head), so with a camera that channel adds
-    systematic error that biases the fit more than it informs it; the camera's positions match to ~2 mm at the true coefficients (measured on a 3 s
-    joint-7 trial).
+    systematic error that biases the fit more than it informs it; the camera's positions match to ~2 mm at the
+    true coefficients (measured on a 3 s joint-7 trial).
 
     `until`: the residuals of the run up to that time (s from the start; the final position there), in
     place of its end — so that a replay of the trial's twin lines up with the trial's own replay."""
@@ -37,10 +37,14 @@ def trial_residual(trial, run, until=None) -> np.ndarray:
     sensors = sensor_model(run.scenario.effects)  # what the camera and the IMU would report of the run
     if trial.camera is not None:
         seen = keep & ~np.isnan(trial.camera[:, 0])
-        parts += list(((sensors.camera(t[seen], run.t, run.head_xy) - trial.camera[seen, :2]) / RESIDUAL_SIGMAS["camera_m"]).T)
+        parts += list(
+            ((sensors.camera(t[seen], run.t, run.head_xy) - trial.camera[seen, :2]) / RESIDUAL_SIGMAS["camera_m"]).T
+        )
     else:
-        parts.append((sensors.imu(t[keep], run.t, run.head_yaw_rate) - trial.head_yaw_rate[keep])
-                     / RESIDUAL_SIGMAS["yaw_rate_rad_s"])
+        parts.append(
+            (sensors.imu(t[keep], run.t, run.head_yaw_rate) - trial.head_yaw_rate[keep])
+            / RESIDUAL_SIGMAS["yaw_rate_rad_s"]
+        )
     return np.concatenate(parts)
 
 

@@ -3,7 +3,6 @@ standard errors and correlations by the sandwich with the replays' input noise (
 
 import dataclasses
 import math
-from typing import List
 
 import numpy as np
 
@@ -33,33 +32,49 @@ def channel_variances(r, channels, num_parameters: int) -> np.ndarray:
 
 @dataclasses.dataclass
 class Uncertainty:
-    names: List[str]
-    values: List[float]
-    standard_errors: List[float]  # inf where the data do not constrain the coefficient
-    correlation: List[List[float]]
-    sensitivities: List[float]  # |change of the standardized residuals| for a 1% change (uncertainty())
-    identifiable: List[bool]
+    names: list[str]
+    values: list[float]
+    standard_errors: list[float]  # inf where the data do not constrain the coefficient
+    correlation: list[list[float]]
+    sensitivities: list[float]  # |change of the standardized residuals| for a 1% change (uncertainty())
+    identifiable: list[bool]
     residual_rms: float  # of the standardized residuals
     simulations: int
 
-    def warnings(self) -> List[str]:
-        return [f"{n}: not identifiable from these trials (relative standard error "
-                f"{'inf' if not math.isfinite(se) else f'{100 * se / max(abs(v), 1e-12):.0f}%'}); its value is the "
-                f"start value, not a fit" for n, v, se, ok in zip(self.names, self.values, self.standard_errors,
-                                                                  self.identifiable, strict=True) if not ok]
+    def warnings(self) -> list[str]:
+        return [
+            f"{n}: not identifiable from these trials (relative standard error "
+            f"{'inf' if not math.isfinite(se) else f'{100 * se / max(abs(v), 1e-12):.0f}%'}); its value is the "
+            f"start value, not a fit"
+            for n, v, se, ok in zip(self.names, self.values, self.standard_errors, self.identifiable, strict=True)
+            if not ok
+        ]
 
     def table(self) -> str:
-        lines = [f"{'coefficient':<12}{'value':>10}{'std. error':>12}{'95% interval':>24}{'sensitivity':>13}  identifiable"]
-        for n, v, se, s, ok in zip(self.names, self.values, self.standard_errors, self.sensitivities,
-                                   self.identifiable, strict=True):
+        lines = [
+            f"{'coefficient':<12}{'value':>10}{'std. error':>12}{'95% interval':>24}{'sensitivity':>13}  identifiable"
+        ]
+        for n, v, se, s, ok in zip(
+            self.names, self.values, self.standard_errors, self.sensitivities, self.identifiable, strict=True
+        ):
             ci = "-" if not math.isfinite(se) else f"[{v - Z95 * se:.4g}, {v + Z95 * se:.4g}]"
-            lines.append(f"{n:<12}{v:>10.4g}{(f'{se:.3g}' if math.isfinite(se) else 'inf'):>12}{ci:>24}{s:>13.3g}  "
-                         f"{'yes' if ok else 'NO'}")
+            lines.append(
+                f"{n:<12}{v:>10.4g}{(f'{se:.3g}' if math.isfinite(se) else 'inf'):>12}{ci:>24}{s:>13.3g}  "
+                f"{'yes' if ok else 'NO'}"
+            )
         return "\n".join(lines)
 
 
-def uncertainty(residuals, friction: Friction, *, parameters=None, relative_step=0.05,
-                max_relative_error=0.3, effects=None, input_noise_samples: int = INPUT_NOISE_SAMPLES) -> Uncertainty:
+def uncertainty(
+    residuals,
+    friction: Friction,
+    *,
+    parameters=None,
+    relative_step=0.05,
+    max_relative_error=0.3,
+    effects=None,
+    input_noise_samples: int = INPUT_NOISE_SAMPLES,
+) -> Uncertainty:
     """Standard errors and correlations of the free parameters from the residual Jacobian at
     (`friction`, `effects`): the sandwich (J^T J)^-1 J^T S J (J^T J)^-1 of least squares with S the
     residual variance of each channel (channel_variances), plus, with `input_noise_samples`, the
@@ -99,8 +114,13 @@ def uncertainty(residuals, friction: Friction, *, parameters=None, relative_step
     d = np.sqrt(np.clip(np.diag(cov), 1e-300, None))
     corr = np.where(np.outer(d, d) > 0, cov / np.outer(d, d), 0.0)
     identifiable = [math.isfinite(s) and s < max_relative_error * abs(v) for s, v in zip(se, values, strict=True)]
-    return Uncertainty(names=[p.name for p in free], values=values, standard_errors=se,
-                       correlation=np.round(corr, 4).tolist(),
-                       sensitivities=[float(np.linalg.norm(c)) * k for c, k in zip(columns, per_percent, strict=True)],
-                       identifiable=identifiable, residual_rms=float(np.sqrt(np.mean(r0**2))),
-                       simulations=getattr(residuals, "simulations", 0) - start_sims)
+    return Uncertainty(
+        names=[p.name for p in free],
+        values=values,
+        standard_errors=se,
+        correlation=np.round(corr, 4).tolist(),
+        sensitivities=[float(np.linalg.norm(c)) * k for c, k in zip(columns, per_percent, strict=True)],
+        identifiable=identifiable,
+        residual_rms=float(np.sqrt(np.mean(r0**2))),
+        simulations=getattr(residuals, "simulations", 0) - start_sims,
+    )
