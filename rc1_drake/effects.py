@@ -537,7 +537,7 @@ def apply_effects(built, context, effects: dict[str, float], *, friction, sgn_sm
     """Write the friction and the effects into `context` (after SetDefaultContext): gravity, payload, the
     friction parameters (friction.friction_parameters: coefficients, friction-law terms, normal forces,
     wheel toe), explicit forces. Every run calls it, so nothing of a previous run's effects stays."""
-    from .friction import friction_parameters
+    from .friction import KnownForces, friction_parameters
     from .model import set_payload
 
     setup = model_setup(effects)
@@ -547,6 +547,6 @@ def apply_effects(built, context, effects: dict[str, float], *, friction, sgn_sm
     system.parameters(system.GetMyMutableContextFromRoot(context))[:] = friction_parameters(
         friction=friction, sgn_smoothing_m_s=sgn_smoothing_m_s, setup=setup, geometry=built.rc1.geometry
     )
-    system.extra_forces = list(setup.extra_forces)
-    system.gravity_in_plane = bool(setup.gravity[0] or setup.gravity[1])
+    known = KnownForces(tuple(setup.extra_forces), bool(setup.gravity[0] or setup.gravity[1]))
+    system.set_known_forces(system.GetMyMutableContextFromRoot(context), known)
     return setup

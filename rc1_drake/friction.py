@@ -30,6 +30,8 @@ of the distance travelled.
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import BasicVector, LeafSystem, ValueProducer
@@ -704,6 +706,14 @@ def friction_step(
     )
 
 
+@dataclasses.dataclass(frozen=True)
+class KnownForces:
+    """A run's known forces of the implicit step beyond the plant's: kept in the context (a parameter), set per run."""
+
+    extra: tuple = ()  # explicit generalized forces of user effects, f(x) -> (nv,)
+    gravity_in_plane: bool = False  # a tilted floor: gravity has a component in the plane of motion
+
+
 class FrictionForces(LeafSystem):
     """The model's friction as one generalized force on the planar plant, implicit in time:
     the wheels' (Eqs. 4-5), the failed joints' viscous friction c_joint (section 3) and the friction
@@ -717,8 +727,8 @@ class FrictionForces(LeafSystem):
     treats PD actuators), clamped to the servo power. That makes the servos stable at any step, so the
     step is set by accuracy alone. The five coefficients, eps, the effect terms, which joints have
     failed and each wheel's normal force are numeric parameters: a run changes them in its context
-    without rebuilding anything. Gravity (a tilted floor) and a user effect's explicit force
-    (`extra_forces`) enter as known forces of the step.
+    without rebuilding anything. Gravity (a tilted floor) and a user effect's explicit force enter as known
+    forces of the step (KnownForces, an abstract parameter): every per-run value lives in the context.
     """
 
     NEWTON_STEPS = 20  # at most: the solve stops when a step moves no velocity by NEWTON_TOLERANCE_M_S
@@ -744,10 +754,7 @@ class FrictionForces(LeafSystem):
         self._param_index = self.DeclareNumericParameter(
             BasicVector(np.concatenate([scalars, np.zeros(NUM_JOINTS), normal, np.zeros(self._num_wheels)]))
         )
-        # Explicit generalized forces of user effects, f(x) -> (nv,); set per run by effects.apply_effects.
-        self.extra_forces = []
-        # Gravity has a component in the plane of motion only on a tilted floor; set by effects.apply_effects.
-        self.gravity_in_plane = False
+        self._known_index = self.DeclareAbstractParameter(AbstractValue.Make(KnownForces()))
         self._inputs = (
             self.DeclareVectorInputPort("plant_state", 2 * nq),
             self.DeclareVectorInputPort("servo_command", NUM_JOINTS),
@@ -782,6 +789,13 @@ class FrictionForces(LeafSystem):
     def num_wheels(self) -> int:
         return self._num_wheels
 
+    def set_known_forces(self, context, forces: KnownForces) -> None:
+        """This run's known forces of the step (effects.apply_effects), in its context."""
+        context.get_mutable_abstract_parameter(self._known_index).set_value(forces)
+
+    def known_forces(self, context) -> KnownForces:
+        return context.get_abstract_parameter(self._known_index).get_value()
+
     def parameters(self, context) -> np.ndarray:
         """The mutable parameter vector (layout above: C_JOINT .. EPS, effect terms, FAILED, normals, toes)."""
         return context.get_mutable_numeric_parameter(self._param_index).get_mutable_value()
@@ -796,11 +810,12 @@ class FrictionForces(LeafSystem):
             set_payload(plant, plant_context, int(payload[1]), payload[0])
             self._payload_applied = payload
         plant.SetPositionsAndVelocities(plant_context, x)
+        known = self.known_forces(context)
         other = -plant.CalcBiasTerm(plant_context)
-        if self.gravity_in_plane:
+        if known.gravity_in_plane:
             other += plant.CalcGravityGeneralizedForces(plant_context)
         # The plant applies gravity and the bias term itself; the extra forces only reach it through this output.
-        extra = sum((force(x) for force in self.extra_forces), np.zeros(len(other))) if self.extra_forces else 0.0
+        extra = sum((force(x) for force in known.extra), np.zeros(len(other))) if known.extra else 0.0
         friction, servo = friction_step(
             x,
             other + extra,

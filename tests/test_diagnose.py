@@ -23,7 +23,7 @@ import pytest
 from rc1_drake.config import FRICTION_NAMES, Z95, Friction, Gait, Stop
 from rc1_drake.diagnose import THRESHOLDS, diagnose
 from rc1_drake.diagnose import verdict as verdicts
-from rc1_drake.diagnose.coordinates import START, Coordinate, effect_coordinates, friction_coordinates, model_at
+from rc1_drake.diagnose.coordinates import START, effect_coordinates, friction_coordinates, model_at
 from rc1_drake.diagnose.decide import decide
 from rc1_drake.diagnose.fit import bounded_least_squares, fit
 from rc1_drake.diagnose.linearize import Linearization, trial_weights
@@ -33,6 +33,7 @@ from rc1_drake.diagnose.significance import Misfit, final_misfit, misfit, subspa
 from rc1_drake.effects import LIBRARY, Effect, EffectParameter, register
 from rc1_drake.measurements import Trial, load_campaign
 from rc1_drake.synthesize import Case, Noise, noise_free_twin, synthesize_campaign
+from rc1_drake.sysid.parameters import Parameter
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -90,7 +91,7 @@ def _linearization(columns, r0, noise_sd=0.0, trials=4):
         dataclasses.replace(_FAKE_TRIAL, trial_id=f"t{k}", failed_joints=[] if kinds[k] == "none" else [7])
         for k in range(trials)
     ]
-    coords = [Coordinate("a", "friction", 0.0, -5, 5, 0.1), Coordinate("b", "effect", 0.0, -5, 5, 1.0)]
+    coords = [Parameter("a", -5, 5, value=0.0, step=0.1), Parameter("b", -5, 5, owner="effect", value=0.0, step=1.0)]
     return Linearization(
         trials=fakes,
         friction=Friction(),
@@ -139,7 +140,11 @@ def test_a_trials_start_is_fitted_to_its_start_rows_and_the_physics_to_all_rows(
         [np.zeros(12)] * n_trials,
         trials=n_trials,
     )
-    starts = [Coordinate(f"t{k}:{i}", START, 0.0, -1.0, 1.0, 1.0, (k, i)) for k in range(n_trials) for i in range(3)]
+    starts = [
+        Parameter(f"t{k}:{i}", -1.0, 1.0, owner=START, value=0.0, step=1.0, start_of=(k, i))
+        for k in range(n_trials)
+        for i in range(3)
+    ]
     coords = [lin.coordinates[0], *starts]
 
     def column(c, k, size):  # a start moves its own trial only

@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from rc1_drake.config import Gait, Rc1Error, Scenario, Start, Stop
-from rc1_drake.effects import LIBRARY, Effect, EffectParameter, commanded_gait, parse_effect, register
+from rc1_drake.diagram import build_diagram
+from rc1_drake.effects import LIBRARY, Effect, EffectParameter, apply_effects, commanded_gait, parse_effect, register
 from rc1_drake.friction import implicit_friction_force, wheel_friction_forces
 from rc1_drake.protocol import simulate
 from rc1_drake.scenarios import validate
@@ -209,6 +210,22 @@ def test_a_users_own_effect_with_an_explicit_force(tmp_path):
         )
         measured = _acceleration(simulate(scenario=validate(scenario)))
         assert measured[1] == pytest.approx((6.0 - 0.12 * 13 * N) / (14 * M), rel=1e-3)
+        # Per-run values live in the context: two contexts of one Diagram keep their own effects.
+        built = build_diagram(scenario)
+        contexts = {"pulled": built.diagram.CreateDefaultContext(), "free": built.diagram.CreateDefaultContext()}
+        for name, context in contexts.items():
+            apply_effects(
+                built,
+                context,
+                scenario.effects if name == "pulled" else {},
+                friction=scenario.friction,
+                sgn_smoothing_m_s=scenario.numerics.sgn_smoothing_m_s,
+            )
+        own = {n: built.friction.GetMyContextFromRoot(c) for n, c in contexts.items()}
+        assert len(built.friction.known_forces(own["pulled"]).extra) == 1
+        assert built.friction.known_forces(own["free"]).extra == ()
+        port = built.friction.GetOutputPort("generalized_force")
+        assert not np.allclose(port.Eval(own["pulled"]), port.Eval(own["free"]))
     finally:
         del LIBRARY["test_tether"]
 

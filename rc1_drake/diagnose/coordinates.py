@@ -1,66 +1,63 @@
-"""The diagnosis's coordinates: the directions of its linearization (a friction coefficient, one coordinate of an
-effect, or one of a trial's start rates), and the model or trials they set."""
+"""The diagnosis's coordinates: the directions of its linearization, each a sysid Parameter (a friction coefficient,
+one coordinate of an effect, or one of a trial's start rates) with its value and step, and the model or trials they
+set."""
 
 import dataclasses
 
 from ..config import Friction
 from ..effects import LIBRARY, effect_values
 from ..start import START_NAMES
-from ..sysid.parameters import DEFAULT_PARAMETERS, difference_step
+from ..sysid.parameters import DEFAULT_PARAMETERS, Parameter, difference_step
 
 # A trial's start (its head's vx, vy, yaw rate at t = 0) as nuisance coordinates: forward-difference steps
 # and bounds (m/s, m/s, rad/s). Its first START_FIT_S of data, not a convention, fix it in every fit (fit).
 START = "start"
-
-
 START_STEPS = (0.02, 0.02, 0.1)
-
-
 START_BOUNDS = (1.0, 1.0, 5.0)
 
 
-@dataclasses.dataclass
-class Coordinate:
-    """A direction of the linearization: a friction coefficient or one coordinate of an effect."""
-
-    name: str
-    owner: str  # "friction", START or the effect's name
-    value: float
-    lower: float
-    upper: float
-    step: float
-    start_of: tuple | None = None  # a START coordinate's (trial index, index in START_NAMES)
-
-
-def friction_coordinates(friction: Friction, held=()) -> list[Coordinate]:
+def friction_coordinates(friction: Friction, held=()) -> list[Parameter]:
     out = []
     for p in [p for p in DEFAULT_PARAMETERS if p.name not in held]:
         value = getattr(friction, p.name)
-        out.append(Coordinate(p.name, "friction", value, p.lower, p.upper, difference_step(p, value)))
+        out.append(dataclasses.replace(p, value=value, step=difference_step(p, value)))
     return out
 
 
-def effect_coordinates(name: str, effects: dict[str, float]) -> list[Coordinate]:
+def effect_coordinates(name: str, effects: dict[str, float]) -> list[Parameter]:
     effect = LIBRARY[name]
     values = effect.coordinates(effect_values(effects, effect))
     return [
-        Coordinate(
-            p.key, name, float(values[p.key]), min(p.lower, values[p.key]), max(p.upper, values[p.key]), p.probe_step
+        Parameter(
+            p.key,
+            min(p.lower, values[p.key]),
+            max(p.upper, values[p.key]),
+            owner=name,
+            value=float(values[p.key]),
+            step=p.probe_step,
         )
         for p in effect.coordinate_space()
     ]
 
 
-def start_coordinates(trials) -> list[Coordinate]:
+def start_coordinates(trials) -> list[Parameter]:
     """Each trial's head rates at t = 0 (Trial.initial_head_rates, which must be set) as three coordinates."""
     return [
-        Coordinate(f"{t.trial_id}:{name}", START, float(t.initial_head_rates[i]), -bound, bound, step, (k, i))
+        Parameter(
+            f"{t.trial_id}:{name}",
+            -bound,
+            bound,
+            owner=START,
+            value=float(t.initial_head_rates[i]),
+            step=step,
+            start_of=(k, i),
+        )
         for k, t in enumerate(trials)
         for i, (name, step, bound) in enumerate(zip(START_NAMES, START_STEPS, START_BOUNDS, strict=True))
     ]
 
 
-def starts_at(trials, coordinates: list[Coordinate], values) -> list:
+def starts_at(trials, coordinates: list[Parameter], values) -> list:
     """`trials` with their START coordinates among `coordinates` set to `values`."""
     out = list(trials)
     for c, v in zip(coordinates, values, strict=True):
@@ -77,7 +74,7 @@ def physics_names(lin, names) -> list[str]:
     return [n for n in names if lin.coordinate(n).owner != START]
 
 
-def model_at(friction: Friction, effects: dict[str, float], coordinates: list[Coordinate], values) -> tuple:
+def model_at(friction: Friction, effects: dict[str, float], coordinates: list[Parameter], values) -> tuple:
     """(friction, effects) with the coordinates set to `values` (effects written back through their classes;
     START coordinates belong to the trials: starts_at)."""
     friction = dataclasses.replace(
@@ -105,11 +102,11 @@ def coordinate_values(coords, friction, effects, trials) -> list[float]:
     return values
 
 
-def acts_in_failed_joints_only(c: Coordinate) -> bool:
+def acts_in_failed_joints_only(c: Parameter) -> bool:
     if c.owner in ("friction", START):
         return c.name == "c_joint"
     return LIBRARY[c.owner].failed_joints_only
 
 
-def signed_step(c: Coordinate) -> float:
+def signed_step(c: Parameter) -> float:
     return c.step if c.value + c.step <= c.upper else -c.step

@@ -11,9 +11,9 @@ from ..config import RESIDUAL_SIGMAS, Friction
 from ..effects import active
 from ..replay import with_start_guess
 from ..sysid.evaluate import Evaluator
+from ..sysid.parameters import Parameter
 from ..sysid.residual import residual_channels
 from .coordinates import (
-    Coordinate,
     acts_in_failed_joints_only,
     coordinate_values,
     effect_coordinates,
@@ -33,7 +33,7 @@ class Linearization:
     trials: list
     friction: Friction
     effects: dict[str, float]
-    coordinates: list[Coordinate]  # every column's coordinate
+    coordinates: list[Parameter]  # every column's coordinate
     r0: list[np.ndarray]  # per trial, at (friction, effects)
     eq6: list[float]  # per trial, at (friction, effects)
     yaw_fit: list[float]
@@ -96,7 +96,7 @@ class Linearization:
     def weighted_sum_of_squares(self, residuals: list[np.ndarray]) -> float:
         return float(sum(w * w * float(r @ r) for w, r in zip(self.weights, residuals, strict=True)))
 
-    def coordinate(self, name) -> Coordinate:
+    def coordinate(self, name) -> Parameter:
         return next(c for c in self.coordinates if c.name == name)
 
 

@@ -1,6 +1,7 @@
-"""The identification's parameters: one Parameter type for a friction coefficient (paper Eqs. 4-5, fitted in
-log scale) or an effect parameter (effects.py, linear scale), the default set of the paper's five coefficients,
-and the values a model takes when some of them are set.
+"""The identification's parameters: one Parameter type for a friction coefficient (paper Eqs. 4-5), an effect's
+parameter or coordinate (effects.py), or a nuisance (a trial's start rate); the default set of the paper's five
+coefficients, and the values a model takes when some of them are set. (effects.EffectParameter is an effect's
+declaration of its parameters: key, bounds, default, probe step; a fit makes Parameters of it.)
 """
 
 import dataclasses
@@ -14,10 +15,14 @@ PAPER_MANUAL = Friction(c_joint=0.045, mu_lat=1.5, mu_long=0.1, c_lat=2.0, c_lon
 
 @dataclasses.dataclass
 class Parameter:
-    name: str  # a Friction field (fitted in log scale), or an effect parameter key (effects.py; linear scale)
+    name: str  # a Friction field, an effect parameter's or coordinate's key (effects.py), or "<trial>:<start rate>"
     lower: float
     upper: float
-    frozen: bool = False
+    frozen: bool = False  # held at its value by a fit
+    owner: str = "friction"  # "friction", the effect's name, or "start" (a trial's start: a nuisance)
+    value: float = 0.0  # where a linearization takes it
+    step: float = 0.0  # its forward-difference step there
+    start_of: tuple | None = None  # a start's (trial index, index in start.START_NAMES)
 
     @property
     def is_friction(self) -> bool:
@@ -35,7 +40,7 @@ DEFAULT_PARAMETERS = [
 
 def effect_parameters(name: str) -> list[Parameter]:
     """The fitted parameters of effect `name`, with its bounds."""
-    return [Parameter(p.key, p.lower, p.upper) for p in LIBRARY[name].fitted()]
+    return [Parameter(p.key, p.lower, p.upper, owner=name) for p in LIBRARY[name].fitted()]
 
 
 def parameter_value(name: str, friction: Friction, effects=None) -> float:
