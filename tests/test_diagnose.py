@@ -27,13 +27,15 @@ from rc1_drake.diagnose.coordinates import START, effect_coordinates, friction_c
 from rc1_drake.diagnose.decide import decide
 from rc1_drake.diagnose.fit import bounded_least_squares, fit
 from rc1_drake.diagnose.linearize import Linearization, trial_weights
-from rc1_drake.diagnose.replays import evaluate, replay_error
+from rc1_drake.diagnose.replays import evaluate
 from rc1_drake.diagnose.report import CandidateResult, HeldOutScore, Round
-from rc1_drake.diagnose.significance import Misfit, final_misfit, misfit, subspace_cosine, wald_p
+from rc1_drake.diagnose.significance import Misfit, final_misfit, misfit, subspace_cosine
 from rc1_drake.effects import LIBRARY, Effect, EffectParameter, register
 from rc1_drake.measurements import Trial, load_campaign
 from rc1_drake.synthesize import Case, Noise, noise_free_twin, synthesize_campaign
+from rc1_drake.sysid.input_noise import replay_error
 from rc1_drake.sysid.parameters import Parameter
+from rc1_drake.sysid.stats import wald_p
 
 REPO = Path(__file__).resolve().parents[1]
 

@@ -44,9 +44,10 @@ verdict, report (what is returned), probe (the probe study), loop (diagnose itse
 threshold the decisions use, with its reason.
 """
 
+from ..sysid.input_noise import replay_error
 from .loop import MAX_ROUNDS, diagnose
 from .probe import probe_visibility
-from .replays import INPUT_NOISE_SAMPLES, replay_error
+from .replays import INPUT_NOISE_SAMPLES
 from .report import Diagnosis
 from .thresholds import THRESHOLDS, Thresholds
 from .verdict import Verdict

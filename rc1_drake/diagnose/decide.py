@@ -6,12 +6,13 @@ import numpy as np
 from ..config import FRICTION_NAMES
 from ..effects import LIBRARY, effect_values
 from ..sysid.evaluate import Evaluator
+from ..sysid.stats import interval95, wald_p
 from .coordinates import model_at, starts_at
 from .fit import Fit, fit
 from .linearize import Linearization, visibility
 from .replays import evaluate
 from .report import CandidateResult, HeldOutScore
-from .significance import interval95, orthogonal_to, subspace_cosine, wald_p
+from .significance import orthogonal_to, subspace_cosine
 from .thresholds import THRESHOLDS, Thresholds
 
 

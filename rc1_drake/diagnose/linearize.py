@@ -11,6 +11,7 @@ from ..config import RESIDUAL_SIGMAS, Friction
 from ..effects import active
 from ..replay import with_start_guess
 from ..sysid.evaluate import Evaluator
+from ..sysid.input_noise import bootstrap_draw, bootstrap_twin, draws_mean_and_covariance
 from ..sysid.parameters import Parameter
 from ..sysid.residual import residual_channels
 from .coordinates import (
@@ -23,7 +24,7 @@ from .coordinates import (
     start_coordinates,
     starts_at,
 )
-from .replays import INPUT_NOISE_SAMPLES, bootstrap_draw, bootstrap_twin, draws_mean_and_covariance, evaluate
+from .replays import INPUT_NOISE_SAMPLES, evaluate
 
 FINAL_SIGMA_M = RESIDUAL_SIGMAS["final_m"]
 

@@ -12,6 +12,7 @@ from ..executor import make_executor
 from ..residuals import where_it_fails
 from ..sysid.evaluate import Checkpoint, Evaluator
 from ..sysid.residual import trial_residual
+from ..sysid.stats import interval95
 from .coordinates import START, physics_names
 from .decide import decide, held_out_by_simulation, rank, screen_friction, unrefitted
 from .fit import fit, polish, starts_fitted
@@ -19,7 +20,7 @@ from .linearize import Linearization, linearize, moved, with_replay_error
 from .probe import suggest_experiments
 from .replays import INPUT_NOISE_SAMPLES, replay_and_score
 from .report import Diagnosis, Round, waterfall_step
-from .significance import interval95, misfit
+from .significance import misfit
 from .thresholds import THRESHOLDS, Thresholds
 from .verdict import verdict
 

@@ -7,24 +7,8 @@ import math
 import numpy as np
 from scipy.stats import chi2
 
-from ..config import Z95
-from .fit import Fit
 from .linearize import FINAL_SIGMA_M, Linearization, pooled_per_case
 from .thresholds import THRESHOLDS, Thresholds
-
-
-def interval95(value: float, standard_error: float) -> list[float]:
-    return [value - Z95 * standard_error, value + Z95 * standard_error]
-
-
-def wald_p(fitted: Fit, names: list[str]) -> float:
-    """p-value of the Wald test that the coordinates `names` are 0 (chi-squared, one dof per coordinate)."""
-
-    idx = [fitted.names.index(n) for n in names]
-    value = fitted.values[idx]
-    cov = fitted.covariance[np.ix_(idx, idx)]
-    stat = float(value @ np.linalg.pinv(cov) @ value) if np.any(np.diag(cov) > 0) else 0.0
-    return float(chi2.sf(stat, len(idx)))
 
 
 def _final_position_variances(lin: Linearization) -> dict[str, float]:

@@ -5,6 +5,7 @@ import dataclasses
 import math
 
 import numpy as np
+from scipy.stats import chi2
 
 from ..config import Z95, Friction
 from .input_noise import INPUT_NOISE_SAMPLES
@@ -124,3 +125,18 @@ def uncertainty(
         residual_rms=float(np.sqrt(np.mean(r0**2))),
         simulations=getattr(residuals, "simulations", 0) - start_sims,
     )
+
+
+def interval95(value: float, standard_error: float) -> list[float]:
+    return [value - Z95 * standard_error, value + Z95 * standard_error]
+
+
+def wald_p(fitted, names: list[str]) -> float:
+    """p-value of the Wald test that the parameters `names` of a fit (its .names, .values, .covariance) are 0
+    (chi-squared, one dof per parameter)."""
+
+    idx = [fitted.names.index(n) for n in names]
+    value = fitted.values[idx]
+    cov = fitted.covariance[np.ix_(idx, idx)]
+    stat = float(value @ np.linalg.pinv(cov) @ value) if np.any(np.diag(cov) > 0) else 0.0
+    return float(chi2.sf(stat, len(idx)))
