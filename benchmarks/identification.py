@@ -2,7 +2,7 @@
 costs in simulations to get there.
 
     python benchmarks/identification.py [--time-limit-s 3] [--seed 8] [--workers 2] [--avs-iterations 10]
-                                        [--only design|recovery|cost]
+                                        [--only design|recovery|cost] [--markdown]
 
 1. design: for each design (the paper's cases; + gaits at 70 and 210 deg/s; + failures at two speeds =
    synthesize.IDENTIFICATION_DESIGN; + a joint-2 failure) it synthesizes a campaign (the paper's
@@ -16,6 +16,8 @@ costs in simulations to get there.
 3. cost: AVS from the manual values on the same campaign: its Eq. 6 error and simulations, and the
    simulations the program fit needed to reach that error (its Eq. 6 error is scored after each
    iteration, outside the count).
+
+--markdown writes the design study's table into docs/identification.md (its identification-design markers).
 """
 
 import argparse
@@ -25,6 +27,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from doc_blocks import REPO_ROOT, check_block, write_block
 
 from rc1_drake.config import FRICTION_NAMES, Friction, Gait, Stop
 from rc1_drake.executor import make_executor
@@ -60,7 +63,12 @@ def campaign(folder, design, args):
     return load_campaign(folder)
 
 
-def design_study(args, executor, workdir):
+PAGE, BLOCK, WRITER = REPO_ROOT / "docs" / "identification.md", "identification-design", "benchmarks/identification.py"
+
+
+def design_study(args, executor, workdir) -> list:
+    """Per design: (name, relative standard errors %, identifiable flags, worst replay RMS, trial-seconds for 10%)."""
+    rows = []
     print(
         f"\n1. relative standard error at the truth, % ({args.time_limit_s:g} s trials, seed {args.seed}, "
         f"input noise from {args.input_noise_samples} resampled replays per trial); * = identifiable (< 30%)"
@@ -87,6 +95,31 @@ def design_study(args, executor, workdir):
             for v, se in zip(spread.values, spread.standard_errors, strict=True)
         )
         print(f"{'  trial-seconds for a 10% standard error':45}{need}", flush=True)
+        relative = [
+            100 * se / v if se != float("inf") else float("inf")
+            for v, se in zip(spread.values, spread.standard_errors, strict=True)
+        ]
+        rows.append((name, relative, list(spread.identifiable), worst, [seconds * (r / 10) ** 2 for r in relative]))
+    return rows
+
+
+def design_table(rows, args) -> str:
+    lines = [
+        f"Measured by `python {WRITER} --only design --markdown` (last run {time.strftime('%Y-%m-%d')}; "
+        f"{args.time_limit_s:g} s trials, the paper's friction as truth, default sensor noise, seed {args.seed}; the "
+        f"uncertainty at the truth with {args.input_noise_samples} resampled replays per trial). Relative standard "
+        "error, % (bold: identifiable, under 30%), the worst trial's RMS standardized residual at the truth (0.6 is "
+        "sensor noise; more, the replay cannot reproduce that trial even at the true coefficients), and the "
+        "trial-seconds of each design that a 10% error would need:",
+        "",
+        "| design (one trial per case) | " + " | ".join(FRICTION_NAMES) + " | worst replay RMS |",
+        "|---|" + "---|" * (len(FRICTION_NAMES) + 1),
+    ]
+    for name, relative, ok, worst, need in rows:
+        cells = [f"**{r:.0f}**" if good else f"{r:.0f}" for r, good in zip(relative, ok, strict=True)]
+        lines.append(f"| {name} | " + " | ".join(cells) + f" | {worst:.2f} |")
+        lines.append("| (trial-seconds for 10%) | " + " | ".join(f"{n:,.0f}" for n in need) + " | |")
+    return "\n".join(lines)
 
 
 def recovery_and_cost(args, executor, workdir, only):
@@ -162,7 +195,12 @@ def main():
         default=INPUT_NOISE_SAMPLES,
         help="resampled replays per trial for the input-noise part of the intervals (0: leave it out)",
     )
+    parser.add_argument("--markdown", action="store_true", help="write the design table into docs/identification.md")
     args = parser.parse_args()
+    if args.markdown:
+        if args.only != "design":
+            parser.error("--markdown writes the design study's table: run it with --only design")
+        check_block(PAGE, BLOCK, WRITER)
     print(
         f"machine: {platform.processor() or platform.machine()}, {args.workers} workers, "
         f"python {platform.python_version()}"
@@ -170,7 +208,9 @@ def main():
     with tempfile.TemporaryDirectory() as tmp, make_executor(workers=args.workers) as executor:
         workdir = Path(tmp)
         if args.only in (None, "design"):
-            design_study(args, executor, workdir)
+            rows = design_study(args, executor, workdir)
+            if args.markdown:
+                write_block(PAGE, BLOCK, WRITER, design_table(rows, args))
         if args.only != "design":
             recovery_and_cost(args, executor, workdir, args.only)
 

@@ -155,9 +155,7 @@ def fit(lin: Linearization, names: list[str]) -> Fit:
         held.append(lin.r0[k] + lin.rows(names, [k])[0] @ dk)
         held_steps.append(dk)
     if len(everything) >= 3 and physics:  # a trial's start is its own: no jackknife
-        # The trial jackknife sees what the sandwich assumes away: residuals correlated within a trial, and
-        # a replay that misses its trial by more than the noise (measured: the toe fitted per trial of the
-        # shipped campaign scatters 1.9-2.7 deg, where the sandwich's standard error was 0.04).
+        # The jackknife sees what the sandwich assumes away: correlated residuals within a trial (docs/diagnosis.md).
         steps = np.array(held_steps)[:, physics]
         jackknife = (len(steps) - 1) / len(steps) * (steps - steps.mean(axis=0)).T @ (steps - steps.mean(axis=0))
         block = np.ix_(physics, physics)

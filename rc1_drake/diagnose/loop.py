@@ -160,8 +160,7 @@ class _Search:
                 self.lin, self.lin.r0, len(physics_names(self.lin, self.model_names)), self.thresholds
             ).consistent
         ):
-            # What the accepted effects leave is noise: searching it only finds false alarms (measured: head drag
-            # accepted after a true toe, benchmarks/diagnosis.py).
+            # What the accepted effects leave is noise: searching it only finds false alarms (docs/diagnosis.md).
             self.stop_reason = "what the accepted effects leave is consistent with the noise"
             return False
         names, baseline, refit_note = self._baseline(first=index == 0)
@@ -237,10 +236,7 @@ class _Search:
         results = rank(
             lin, base_fit, names, [n for n in self.replayed if n not in self.accepted], thresholds=thresholds
         )
-        # Refine the most promising candidates by one secant step: replay every trial at the candidate's linear fit
-        # and update its columns (Broyden) there. A column taken at 0 misjudges effects seen at a clearly visible
-        # strength (measured: a 0.5 head drag fitted at the 0.8 trust bound, not significant, and a tilt accepted
-        # in its place); the refined fits decide.
+        # A column taken at 0 misjudges an effect at a visible strength: a secant step refines it (docs/diagnosis.md).
         refined = {}
         for c in [c for c in results if c.status != "not detectable here"][:REFINED_CANDIDATES]:
             own = names + [co.name for co in lin.coordinates if co.owner == c.name]
@@ -272,9 +268,7 @@ class _Search:
         # The accepted model: the refined fit, where its residuals are simulated (at the refinement's point plus
         # the refit's step; that step is small, and the next round refits from there).
         lin = moved(at, cand_fit.names, cand_fit.values, self.evaluator)
-        # The replay's own error depends on the model. Measured on 2 s joint-2 trials with a 0.5 head drag hidden:
-        # with the bias taken at no drag, the accepted true model missed a trial by 5 cm (noise 1.1) and was called
-        # unexplained; with the bias taken again here, its misfit is the noise's (p = 0.36).
+        # The replay's own error depends on the model: measured again at the accepted one (docs/diagnosis.md).
         lin = with_replay_error(lin, self.evaluator, self.samples)
         accepted_at = {n: lin.coordinate(n).value for n in c.coordinates}
         lin, steps = polish(lin, self.model_names, c.name, self.evaluator, self.samples)
