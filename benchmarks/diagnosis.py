@@ -83,6 +83,53 @@ REFERENCE = {  # a clearly visible strength on DESIGN's 3 s trials (diagnose.pro
 }
 
 
+def make_campaign(folder, effect, strength, seed, seconds, design=DESIGN, truth_model="drake", record_after_s=0.0):
+    """Synthesize the campaign of one row into `folder`: `effect` at REFERENCE's strength times `strength` hidden."""
+    effects = {} if effect is None else {REFERENCE[effect][0]: REFERENCE[effect][1] * strength}
+    synthesize_campaign(
+        folder,
+        design=parse_design(design),
+        effects=effects,
+        seed=seed,
+        truth_model=truth_model,
+        record_after_s=record_after_s,
+        stop=Stop(line_x_m=None, revolutions=None, time_limit_s=seconds),
+    )
+    return effects
+
+
+def is_right(verdict, accepted, effect) -> bool:
+    """The whole right answer: no_missing_effect with nothing hidden, effect_found with the hidden effect alone."""
+    return verdict == ("effect_found" if effect else "no_missing_effect") and set(accepted) == (
+        {effect} if effect else set()
+    )
+
+
+def score(result, effect, effects) -> dict:
+    """What a row records of a diagnosis with `effect` hidden (at `effects`)."""
+    first = result.candidates[0] if result.candidates else None
+    inside, estimate = None, None
+    if effect is not None:  # the final model's estimate (after every round's refit), in the fitted coordinates
+        truth = LIBRARY[effect].coordinates(effect_values(effects, LIBRARY[effect]))
+        estimate = {k: result.final_coordinates[k] for k in truth if k in result.final_coordinates} or None
+        if estimate:
+            inside = all(abs(v - truth[k]) <= Z95 * se for k, (v, se) in estimate.items())
+    return {
+        "verdict": str(result.verdict),
+        "accepted": result.accepted,
+        "right": is_right(result.verdict, result.accepted, effect),
+        "first": first.name if first else None,
+        "inside_interval": inside,
+        "estimate": estimate,
+        "first_round": [
+            [c.name, c.status, c.coordinates, (c.simulated or {}).get("held_out_reduction")] for c in result.candidates
+        ],
+        "partial": [r.partial for r in result.rounds if r.partial],
+        "final_effects": result.effects,
+        "simulations": result.simulations,
+    }
+
+
 def one(
     effect,
     strength,
@@ -96,17 +143,8 @@ def one(
     candidates="physical",
     start_rates="rest",
 ) -> dict:
-    effects = {} if effect is None else {REFERENCE[effect][0]: REFERENCE[effect][1] * strength}
     with tempfile.TemporaryDirectory() as tmp:
-        synthesize_campaign(
-            tmp,
-            design=parse_design(design),
-            effects=effects,
-            seed=seed,
-            truth_model=truth_model,
-            record_after_s=record_after_s,
-            stop=Stop(line_x_m=None, revolutions=None, time_limit_s=seconds),
-        )
+        effects = make_campaign(tmp, effect, strength, seed, seconds, design, truth_model, record_after_s)
         campaign = load_campaign(tmp)
         start = time.perf_counter()
         result = diagnose(
@@ -118,13 +156,6 @@ def one(
             candidates=candidates.split(","),
             start_rates=start_rates,
         )
-    first = result.candidates[0] if result.candidates else None
-    inside, estimate = None, None
-    if effect is not None:  # the final model's estimate (after every round's refit), in the fitted coordinates
-        truth = LIBRARY[effect].coordinates(effect_values(effects, LIBRARY[effect]))
-        estimate = {k: result.final_coordinates[k] for k in truth if k in result.final_coordinates} or None
-        if estimate:
-            inside = all(abs(v - truth[k]) <= Z95 * se for k, (v, se) in estimate.items())
     return {
         "effect": effect,
         "strength": strength,
@@ -134,17 +165,7 @@ def one(
         "record_after_s": record_after_s,
         "candidates": candidates,
         "start_rates": start_rates,
-        "verdict": result.verdict,
-        "accepted": result.accepted,
-        "first": first.name if first else None,
-        "inside_interval": inside,
-        "estimate": estimate,
-        "first_round": [
-            [c.name, c.status, c.coordinates, (c.simulated or {}).get("held_out_reduction")] for c in result.candidates
-        ],
-        "partial": [r.partial for r in result.rounds if r.partial],
-        "final_effects": result.effects,
-        "simulations": result.simulations,
+        **score(result, effect, effects),
         "wall_s": time.perf_counter() - start,
     }
 
@@ -272,11 +293,7 @@ def main():
         inside = sum(bool(r["inside_interval"]) for r in rows) if effect else 0
         wrong = sum(any(a != effect for a in r["accepted"]) for r in rows)
         partial = sum(bool(r.get("partial")) for r in rows)
-        right = sum(
-            r["verdict"] == ("effect_found" if effect else "no_missing_effect")
-            and set(r["accepted"]) == ({effect} if effect else set())
-            for r in rows
-        )  # the whole answer
+        right = sum(is_right(r["verdict"], r["accepted"], effect) for r in rows)  # the whole answer
         print(
             f"{effect or 'none (false alarms)':<34}{design:>11}{strength:>9g}{hit:>7}/{n}{first:>5}/{n}"
             f"{inside:>5}/{n}{wrong:>5}/{n}{partial:>7}/{n}{right:>5}/{n}{sum(r['wall_s'] for r in rows) / n:>8.0f}"

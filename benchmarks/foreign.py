@@ -264,11 +264,7 @@ def diagnose_table(rows: list) -> str:
         for model in MODELS:
             rs = [r for r in rows if r["job"][2:] == [model, hidden, strength, candidates, start_rates]]
             n = len(rs)
-            right = sum(
-                r["verdict"] == ("effect_found" if hidden else "no_missing_effect")
-                and set(r["accepted"]) == ({hidden} if hidden else set())
-                for r in rs
-            )
+            right = sum(diagnosis.is_right(r["verdict"], r["accepted"], hidden) for r in rs)
             wrong = sum(any(a != hidden for a in r["accepted"]) for r in rs)
             if hidden:
                 found = sum(hidden in r["accepted"] for r in rs)
