@@ -57,7 +57,7 @@ def row(args, model: str, label: str, seed: int, p_accept: float) -> dict:
     folder = args.out / "campaigns" / f"{model}-{label}-{seed}"
     if not folder.is_dir():
         diagnosis.make_campaign(folder, effect, strength, seed, SECONDS, truth_model=model)
-    effects = {} if effect is None else {diagnosis.REFERENCE[effect][0]: diagnosis.REFERENCE[effect][1] * strength}
+    effects = diagnosis.hidden_effects(effect, strength)
     started = time.perf_counter()
     result = diagnose(
         load_campaign(folder),

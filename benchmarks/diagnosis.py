@@ -83,9 +83,14 @@ REFERENCE = {  # a clearly visible strength on DESIGN's 3 s trials (diagnose.pro
 }
 
 
+def hidden_effects(effect, strength) -> dict:
+    """The truth's effects of a row: `effect` at REFERENCE's strength times `strength` (none for None)."""
+    return {} if effect is None else {REFERENCE[effect][0]: REFERENCE[effect][1] * strength}
+
+
 def make_campaign(folder, effect, strength, seed, seconds, design=DESIGN, truth_model="drake", record_after_s=0.0):
-    """Synthesize the campaign of one row into `folder`: `effect` at REFERENCE's strength times `strength` hidden."""
-    effects = {} if effect is None else {REFERENCE[effect][0]: REFERENCE[effect][1] * strength}
+    """Synthesize the campaign of one row into `folder`, with hidden_effects(effect, strength)."""
+    effects = hidden_effects(effect, strength)
     synthesize_campaign(
         folder,
         design=parse_design(design),

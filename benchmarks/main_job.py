@@ -19,7 +19,6 @@ import shutil
 import time
 from pathlib import Path
 
-import numpy as np
 from doc_blocks import REPO_ROOT, check_block, write_block
 
 from rc1_drake.cli import main as rc1
@@ -31,10 +30,6 @@ from rc1_drake.scenarios import load_model_file
 
 CAMPAIGN = REPO_ROOT / "data" / "paper_campaign"
 PAGE, BLOCK, WRITER = REPO_ROOT / "README.md", "loop-table", "benchmarks/main_job.py --markdown"
-
-
-def mean_eq6(report) -> float:
-    return float(np.mean([r.eq6_error_pct for r in report.trials]))
 
 
 def table(before, where, diagnosis: dict, model, after, truth: dict, wall_s: float) -> str:
@@ -53,7 +48,7 @@ def table(before, where, diagnosis: dict, model, after, truth: dict, wall_s: flo
     rows = [
         (
             "1. `rc1 compare data/paper_campaign`",
-            f"the paper's model misses the final head positions by {mean_eq6(before):.2f}% "
+            f"the paper's model misses the final head positions by {before.mean_eq6_error_pct:.2f}% "
             f"of the distance travelled (mean Eq. 6 over {len(before.trials)} trials)",
         ),
         (
@@ -76,7 +71,10 @@ def table(before, where, diagnosis: dict, model, after, truth: dict, wall_s: flo
             + "; friction refitted: "
             + ", ".join(f"{k} = {v:.3g}" for k, v in vars(model.friction).items()),
         ),
-        ("5. `rc1 compare ... --model-file` it", f"mean Eq. 6 {mean_eq6(before):.2f}% -> {mean_eq6(after):.2f}%"),
+        (
+            "5. `rc1 compare ... --model-file` it",
+            f"mean Eq. 6 {before.mean_eq6_error_pct:.2f}% -> {after.mean_eq6_error_pct:.2f}%",
+        ),
     ]
     lines = [
         f"Measured by `python {WRITER}` (last run {time.strftime('%Y-%m-%d')}):",
