@@ -66,7 +66,9 @@ def test_console_entry_point_reports_errors_without_traceback():
     [
         ("diagnose", "--json"),
         ("diagnose", "--plots"),
+        ("diagnose", "--checkpoint"),
         ("identify", "--out"),
+        ("identify", "--checkpoint"),
         ("compare", "--json"),
         ("run", "--json"),
         ("sweep", "--out"),
