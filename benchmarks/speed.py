@@ -109,7 +109,7 @@ def replay(args) -> list:
     derivatives = (
         replayer.session.simulate(scenario, initial=replayer.initial, sensitivities=names).wall_time_s / run.wall_time_s
     )
-    apart = float(moved(run.head_xy[-1], drake.head_xy[-1], run.head_xy[0]))
+    apart = float(moved(run.final_head_xy, drake.final_head_xy, run.head_xy[0]))
     print(
         f"replay: {run.t[-1]:.2f} s trial in {run.wall_time_s:.3f} s compiled, {drake.wall_time_s:.2f} s Drake "
         f"({apart:.1e}% apart); 8 bootstrap replays in {batch:.2f} s",

@@ -755,12 +755,23 @@ def cmd_identify(args) -> int:
 
     campaign = loaded_campaign(args.campaign)
     checkpoint = args.checkpoint or Path("out") / "checkpoints" / f"{Path(campaign.path).name}-identify"
+    start = load_model_file(args.start) if args.start else None
+    # Where the fit goes as it ends, before its uncertainty: the outputs asked for, else beside the checkpoint.
+    fit_model, fit_json = args.out or checkpoint / "fit.model.yaml", args.json or checkpoint / "fit.json"
+
+    def keep_fit(fit):
+        _write_atomically(fit_model, lambda p: p.write_text(friction_to_yaml(fit.friction, start and start.effects)))
+        record = {"stage": "fit (its uncertainty and held-out errors not computed yet)", **fit.to_json()}
+        _write_atomically(fit_json, lambda p: p.write_text(json.dumps(record, indent=2, default=float) + "\n"))
+        args.kept += [f"the fitted model in {fit_model}", f"the fit in {fit_json}"]
+        print(f"  fit done: {fit_model}, {fit_json}; now its uncertainty", file=sys.stderr, flush=True)
+
     result = identify(
         campaign,
         method=args.method,
         trials=ids(args.trials),
         validation=ids(args.validation),
-        start=load_model_file(args.start) if args.start else None,
+        start=start,
         freeze=args.freeze,
         start_rates=args.start_rates,
         iterations=args.iterations,
@@ -769,6 +780,7 @@ def cmd_identify(args) -> int:
         scheduler=args.scheduler,
         progress=progress,
         checkpoint=checkpoint,
+        on_fit=keep_fit,
     )
     print(result.format())
     if args.json:
@@ -781,6 +793,8 @@ def cmd_identify(args) -> int:
         fig = avs_figure(result.result)
         _write_atomically(args.plots / "avs_iterations.png", lambda p: fig.savefig(p, format="png", dpi=110))
         plt.close(fig)
+    for path in {fit_model, fit_json} - {args.out, args.json}:  # kept for a failure; the report has them now
+        path.unlink(missing_ok=True)
     Checkpoint.discard(checkpoint)
     return 0
 
@@ -839,6 +853,14 @@ def cmd_diagnose(args) -> int:
     def progress(text):
         print(f"  [{time.perf_counter() - started:5.0f} s] {text}", file=sys.stderr, flush=True)
 
+    out = args.out or Path("out") / f"{Path(campaign.path).name}.model.yaml"
+
+    def keep_round(friction, effects, accepted):
+        note = f"rc1 diagnose {campaign.path}: after accepting {', '.join(accepted)} (the diagnosis went on)"
+        _write_atomically(out, lambda p: p.write_text(model_to_yaml(friction, effects, comment=note)))
+        args.kept[:] = [f"the model after accepting {', '.join(accepted)} in {out}"]
+        progress(f"model so far written to {out}")
+
     result = diagnose(
         campaign,
         friction=model.friction,
@@ -854,9 +876,9 @@ def cmd_diagnose(args) -> int:
         progress=progress,
         start_rates=args.start_rates,
         checkpoint=checkpoint,
+        on_round=keep_round,
     )
     print(result.format())
-    out = args.out or Path("out") / f"{Path(campaign.path).name}.model.yaml"
     _write_atomically(
         out,
         lambda p: p.write_text(
@@ -916,6 +938,8 @@ def _check_outputs(args) -> None:
 
 def main(argv=None) -> int:
     args = make_parser().parse_args(argv)
+    args.command_line = "rc1 " + " ".join(sys.argv[1:] if argv is None else argv)
+    args.kept = []  # what a long command has written so far: named if it fails later
     if getattr(args, "engine", None):
         use_engine(args.engine)  # batch work and its worker processes follow it
     try:
@@ -936,6 +960,45 @@ def main(argv=None) -> int:
     except OSError as e:
         print(f"rc1 {args.command}: error: {e.filename or ''}: {e.strerror}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        print(f"rc1 {args.command}: interrupted{_kept_and_resume(args)}", file=sys.stderr)
+        return 130
+    except Exception as e:  # noqa: BLE001 - anything unforeseen: one line, the traceback in a log
+        log = _write_log(args)
+        print(
+            f"rc1 {args.command}: internal error: {type(e).__name__}: {_first_line(e)}{_kept_and_resume(args)}; "
+            f"full log: {log}",
+            file=sys.stderr,
+        )
+        return 1
+
+
+def _first_line(error: BaseException) -> str:
+    text = " ".join(str(error).split())
+    return text if len(text) <= 200 else text[:197] + "..."
+
+
+def _kept_and_resume(args) -> str:
+    """What the command had written, and how to go on from its checkpoint."""
+    kept = f"; kept: {', '.join(args.kept)}" if args.kept else ""
+    resumes = args.command in ("identify", "diagnose", "sweep")
+    return kept + ("; run the same command again to resume from its checkpoint" if resumes else "")
+
+
+def _write_log(args) -> Path:
+    """The traceback of the exception being handled and the command line, in out/logs (else the temporary folder)."""
+    import traceback
+
+    text = f"{args.command_line}\n{time.strftime('%Y-%m-%d %H:%M:%S')}\n\n{traceback.format_exc()}"
+    name = f"rc1-{args.command}-{time.strftime('%Y%m%d-%H%M%S')}-{os.getpid()}.log"
+    for folder in (Path("out") / "logs", Path(tempfile.gettempdir())):
+        try:
+            folder.mkdir(parents=True, exist_ok=True)
+            (folder / name).write_text(text)
+            return folder / name
+        except OSError:
+            continue
+    return Path("(no log: nowhere to write it)")
 
 
 if __name__ == "__main__":

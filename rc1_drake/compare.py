@@ -143,19 +143,20 @@ def score_trial(trial: Trial, run) -> TrialResult:
     dt = np.diff(trial.t)
     yaw_measured = np.concatenate([[0.0], np.cumsum(0.5 * (trial.head_yaw_rate[1:] + trial.head_yaw_rate[:-1]) * dt)])
     circling = run.stop_reason == "circling" or trial.stop.type == "revolutions"
+    ended = run.until_event()  # the experiment as it ended: its turns and circle up to the stop event
     return TrialResult(
         trial_id=trial.trial_id,
         case=trial.case,
-        eq6_error_pct=simulator_error(run.head_xy[-1], trial.final_head_xy, trial.initial_head_pose[:2]),
-        predicted_final_xy_m=[float(v) for v in run.head_xy[-1]],
+        eq6_error_pct=simulator_error(run.final_head_xy, trial.final_head_xy, trial.initial_head_pose[:2]),
+        predicted_final_xy_m=[float(v) for v in run.final_head_xy],
         measured_final_xy_m=[float(v) for v in trial.final_head_xy],
         outcome=replay_outcome(trial, run),
         yaw_rate_fit_pct=fit_percent(trial.head_yaw_rate[inside], rate_sim),
         camera_fit_pct=camera_fit,
         tracking_rms_deg=tracking_rms_deg(run, trial),
-        revolutions_model=float(revolutions(run.head_yaw)),
+        revolutions_model=float(revolutions(ended.head_yaw)),
         revolutions_measured=float(revolutions(yaw_measured)),
-        circle_diameter_model_m=float(circle_diameter(run.head_xy, run.head_yaw)) if circling else None,
+        circle_diameter_model_m=float(circle_diameter(ended.head_xy, ended.head_yaw)) if circling else None,
         circle_diameter_measured_m=None
         if cam_diameter is None or not math.isfinite(cam_diameter)
         else float(cam_diameter),

@@ -109,6 +109,9 @@ class Stop:
     line_x_m: float | None = 3.18
     revolutions: float | None = 2.0
     time_limit_s: float = 30.0
+    # Run on to time_limit_s past the line or the turns, their instant and state recorded (Run.event_t): a replay
+    # then covers every sample its trial measured, so its residuals have the same entries whatever the model.
+    run_through: bool = False
 
 
 @dataclasses.dataclass

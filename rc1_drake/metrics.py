@@ -60,6 +60,7 @@ class Summary:
 
 
 def summarize(run) -> Summary:
+    run = run.until_event()  # the experiment as it ended
     xy = run.head_xy
     outcome = run.stop_reason
     return Summary(

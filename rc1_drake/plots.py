@@ -33,6 +33,7 @@ def head_path_figure(runs, *, labels=None, title=None, measured_final=None):
     p0 = module_positions(complex(x0[0], x0[1]), phi0, first.geometry)
     ax.plot(p0.real, p0.imag, "o", mfc="none", color="k", ms=6, label="start configuration")
     for k, (run, label) in enumerate(zip(runs, labels, strict=True)):
+        run = run.until_event()  # a replay runs on past its stop event: drawn up to it
         (line,) = ax.plot(run.head_xy[:, 0], run.head_xy[:, 1], "--", label=label or "simulated head path")
         ax.plot(*run.head_xy[-1], "x", color=line.get_color(), ms=9, mew=2)
         if measured_final is not None:

@@ -93,16 +93,52 @@ class Run:
     # Forward sensitivities d state / d parameter (N, P, 32) for the parameters named (compiled engine only).
     sensitivity: np.ndarray | None = None
     sensitivity_names: tuple = ()
+    # A run through its stop event (Stop.run_through): when the line or the turns were reached (None: never), the
+    # state then (the first update at or past it) and its sensitivities, which follow the event's time (P, 32).
+    event_t: float | None = None
+    event_state: np.ndarray | None = None
+    event_sensitivity: np.ndarray | None = None
 
     def residual_jacobian(self, residual_of, residual) -> np.ndarray:
         """d residual_of(run) / d parameter, one column per sensitivity_names, for a residual linear in the logged
-        states (interpolated positions and rates): the residual of the logs moved along each sensitivity, less
-        `residual` (residual_of(self))."""
-        columns = [
-            residual_of(dataclasses.replace(self, state=self.state + self.sensitivity[:, p])) - residual
-            for p in range(len(self.sensitivity_names))
-        ]
+        states (interpolated positions and rates) and the event's state: the residual of the run moved along each
+        sensitivity, less `residual` (residual_of(self))."""
+        columns = []
+        for p in range(len(self.sensitivity_names)):
+            moved = dataclasses.replace(self, state=self.state + self.sensitivity[:, p])
+            if self.event_state is not None:
+                moved.event_state = self.event_state + self.event_sensitivity[p]
+            columns.append(residual_of(moved) - residual)
         return np.column_stack(columns) if columns else np.zeros((len(residual), 0))
+
+    @property
+    def end_t(self) -> float:
+        """When the experiment ended: its stop event, else its last log."""
+        return float(self.t[-1]) if self.event_t is None else self.event_t
+
+    @property
+    def final_head_xy(self) -> np.ndarray:
+        """The head's position where the experiment ended (end_t): what the paper measures by hand."""
+        return self.head_xy[-1] if self.event_state is None else self.event_state[0:2]
+
+    def until_event(self) -> Run:
+        """This run as the experiment saw it: its logs up to the stop event, closed by the event's state."""
+        if self.event_t is None:
+            return self
+        keep = self.t < self.event_t - 1e-12
+        sensitivity = None
+        if self.sensitivity is not None:
+            sensitivity = np.concatenate([self.sensitivity[keep], self.event_sensitivity[None]])
+        return dataclasses.replace(
+            self,
+            t=np.append(self.t[keep], self.event_t),
+            state=np.vstack([self.state[keep], self.event_state]),
+            servo_torque=np.vstack([self.servo_torque[keep], self.servo_torque[np.searchsorted(self.t, self.event_t)]]),
+            sensitivity=sensitivity,
+            event_t=None,
+            event_state=None,
+            event_sensitivity=None,
+        )
 
     @property
     def head_xy(self):
@@ -161,19 +197,25 @@ class Session:
         yaw0 = plant.GetPositions(plant_context)[2]
         line = scenario.stop.line_x_m
         turn = None if scenario.stop.revolutions is None else 2 * math.pi * scenario.stop.revolutions
-        reason = ["timed_out"]
+        reason, event = ["timed_out"], {}
+        through = scenario.stop.run_through
 
         def monitor(root_context):
             q = plant.GetPositions(plant_context)
             if not np.isfinite(q[0]):
                 return EventStatus.Failed(built.diagram, "the state is not finite")
+            if event:
+                return EventStatus.Succeeded()
             if line is not None and q[0] >= line:
                 reason[0] = "crossed"
-                return EventStatus.ReachedTermination(built.diagram, "crossed the line")
-            if turn is not None and abs(q[2] - yaw0) >= turn:
+            elif turn is not None and abs(q[2] - yaw0) >= turn:
                 reason[0] = "circling"
-                return EventStatus.ReachedTermination(built.diagram, "circling")
-            return EventStatus.Succeeded()
+            else:
+                return EventStatus.Succeeded()
+            if through:
+                event["t"], event["state"] = root_context.get_time(), plant.GetPositionsAndVelocities(plant_context)
+                return EventStatus.Succeeded()
+            return EventStatus.ReachedTermination(built.diagram, reason[0])
 
         # Later failures split the run: advance to the failure time, switch, go on.
         t_end = scenario.stop.time_limit_s
@@ -184,10 +226,10 @@ class Session:
         try:
             for failure in later:
                 simulator.AdvanceTo(failure.time_s)
-                if reason[0] != "timed_out":
+                if reason[0] != "timed_out" and not through:
                     break
                 built.failure_switch.fail(context, failure)
-            if reason[0] == "timed_out":
+            if reason[0] == "timed_out" or through:
                 simulator.AdvanceTo(t_end)
         except RuntimeError as e:
             raise Rc1Error(f"simulation failed at t = {context.get_time():.3f} s: {' '.join(str(e).split())}") from None
@@ -212,6 +254,8 @@ class Session:
             stop_reason=reason[0],
             wall_time_s=wall,
             geometry=built.rc1.geometry,
+            event_t=event.get("t"),
+            event_state=event.get("state"),
         )
 
 

@@ -85,12 +85,14 @@ def _grace_s(t) -> float:
 
 
 def replay_scenario(trial: Trial, friction: Friction, effects=None, numerics=None) -> Scenario:
-    """The scenario of a replay: the trial's failures and stop rule, the given friction (and effects)."""
+    """The scenario of a replay: the trial's failures and stop rule, the given friction (and effects). It runs
+    through its stop event to the data's end (Stop.run_through): the final position is the head's at the event
+    (or at the end, past the grace, if it never comes), and every measured sample has a replayed state."""
     end, grace = float(trial.t[-1] - trial.t[0]), _grace_s(trial.t)
     if trial.stop.type == "line":
-        stop = Stop(line_x_m=trial.stop.value, revolutions=None, time_limit_s=end + grace)
+        stop = Stop(line_x_m=trial.stop.value, revolutions=None, time_limit_s=end + grace, run_through=True)
     elif trial.stop.type == "revolutions":
-        stop = Stop(line_x_m=None, revolutions=trial.stop.value, time_limit_s=end + grace)
+        stop = Stop(line_x_m=None, revolutions=trial.stop.value, time_limit_s=end + grace, run_through=True)
     else:
         stop = Stop(line_x_m=None, revolutions=None, time_limit_s=min(trial.stop.value, end))
     x, y, _ = trial.initial_head_pose
@@ -243,7 +245,7 @@ def tracking_rms_deg(run: Run, trial: Trial) -> float:
     potentiometers would read it (effects.SensorModel)."""
     working = [j - 1 for j in trial.working_joints]
     t = trial.t - trial.t[0]
-    inside = t <= run.t[-1]
+    inside = t <= run.t[-1] + 1e-9
     read = sensor_model(run.scenario.effects).potentiometers(run.q)
     sim = np.column_stack([np.interp(t[inside], run.t, read[:, j]) for j in working])
     return float(np.degrees(np.sqrt(np.mean((sim - trial.q[inside][:, working]) ** 2))))

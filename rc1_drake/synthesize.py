@@ -155,7 +155,8 @@ def synthesize_campaign(
                 run, scenario = _reference_run(scenario, record_after_s, sample_period_s)
             else:
                 run, scenario = _drake_run(scenario, record_after_s, sessions)
-            trial = _measure(run, scenario, f"{label}_{k + 1}", noise, rng, camera, sample_period_s)
+            on_grid = np.abs(run.t / sample_period_s - np.round(run.t / sample_period_s)) < 1e-6  # not the stop
+            trial = _measure(run, scenario, f"{label}_{k + 1}", noise, rng, camera, run.t[on_grid])
             write_trial(folder, trial.trial_id, trial)
             trials.append(trial)
     if truth_file is not None:
@@ -234,18 +235,17 @@ def _reference_run(scenario: Scenario, record_after_s: float, period: float) -> 
     return run, _recorded(scenario, record_after_s)
 
 
-def noise_free_twin(trial: Trial, *, friction: Friction, effects=None, head_at: float | None = None) -> Trial:
-    """`trial` as the model (friction, effects) makes it with no sensor noise: the trial's gait, failures,
-    start pose and sample times, driven by the servos for the trial's whole duration (whatever its stop
-    rule, so that the samples line up with the trial's), with a camera. Replaying the twin shows what the
-    replay itself misses on this kind of motion (diagnose.replay_error). head_at: its final position is the head's
-    at that time (s from the start), not at its end."""
+def noise_free_twin(trial: Trial, *, friction: Friction, effects=None) -> Trial:
+    """`trial` as the model (friction, effects) makes it with no sensor noise, driven by the servos: the trial's
+    gait, failures, start pose, stop rule and sample times, with a camera. Its run goes through the stop event to
+    the replay's time limit (replay.replay_scenario) and its final position follows the replays' rule (the head's
+    at the event, or at that limit if none comes), so that a replay of the twin has the trial's residual entries
+    and shows what the replay itself misses on this kind of motion (sysid.input_noise.replay_error)."""
     from .gait import serpenoid
     from .kinematics import module_yaws
+    from .replay import replay_scenario
 
     effects = dict(effects or {})
-    end = float(trial.t[-1] - trial.t[0])
-    period = round(float(np.median(np.diff(trial.t))), 9)  # exact: a log sample must not slip a step
     q0, _ = serpenoid(0.0, commanded_gait(trial.gait, effects))
     x, y, head_yaw = (float(v) for v in trial.initial_head_pose)
     scenario = Scenario(
@@ -254,18 +254,19 @@ def noise_free_twin(trial: Trial, *, friction: Friction, effects=None, head_at: 
         effects=effects,
         failures=[Failure(joint=j) for j in trial.failed_joints],
         start=Start(x_m=x, y_m=y, heading_deg=math.degrees(head_yaw + module_yaws(0.0, q0).mean())),
-        stop=Stop(line_x_m=None, revolutions=None, time_limit_s=end),
-        numerics=Numerics(log_period_s=period),
+        stop=dataclasses.replace(replay_scenario(trial, friction, effects).stop, run_through=True),
+        numerics=Numerics(log_period_s=0.0),  # every update: the trial's own sample times are interpolated
     )
     run = make_session(scenario).simulate(scenario)
     silent = dataclasses.replace(Noise().scaled(0.0), camera_dropout=0.0)
-    twin = _measure(run, scenario, trial.trial_id, silent, np.random.default_rng(0), True, period)
-    twin.initial_head_rates = run.state[0, 16:19].copy()  # its start, known exactly
-    if head_at is not None:  # the head itself, not what a camera with a fault would show of it
-        twin = dataclasses.replace(
-            twin, final_head_xy=np.array([np.interp(head_at, run.t, run.head_xy[:, i]) for i in (0, 1)])
-        )
-    return dataclasses.replace(twin, notes=f"noise-free twin of {trial.trial_id}")
+    twin = _measure(run, scenario, trial.trial_id, silent, np.random.default_rng(0), True, trial.t - trial.t[0])
+    return dataclasses.replace(
+        twin,
+        stop=trial.stop,
+        final_head_xy=run.final_head_xy.copy(),  # the head itself, not what a camera with a fault would show of it
+        initial_head_rates=run.state[0, 16:19].copy(),  # its start, known exactly
+        notes=f"noise-free twin of {trial.trial_id}",
+    )
 
 
 def _check_within_servos(case: Case) -> None:
@@ -281,13 +282,12 @@ def _check_within_servos(case: Case) -> None:
         )
 
 
-def _measure(run, scenario, trial_id, noise: Noise, rng, camera, period) -> Trial:
-    """What the robot's sensors and the experimenter would have recorded of `run`."""
-    on_grid = np.abs(run.t / period - np.round(run.t / period)) < 1e-6  # drop the off-grid stop instant
-    t = run.t[on_grid]
+def _measure(run, scenario, trial_id, noise: Noise, rng, camera, t) -> Trial:
+    """What the robot's sensors and the experimenter would have recorded of `run` at the sample times `t` (s)."""
     n = len(t)
     sensors = sensor_model(scenario.effects)  # the sensor faults, before the noise
-    q = sensors.potentiometers(run.q[on_grid]) + rng.normal(0, math.radians(noise.potentiometer_deg), (n, 13))
+    angles = np.column_stack([np.interp(t, run.t, run.q[:, j]) for j in range(NUM_JOINTS)])
+    q = sensors.potentiometers(angles) + rng.normal(0, math.radians(noise.potentiometer_deg), (n, 13))
     for f in scenario.failures:
         q[:, f.joint - 1] = np.nan
     rate = (
@@ -317,7 +317,7 @@ def _measure(run, scenario, trial_id, noise: Noise, rng, camera, period) -> Tria
         gait=dataclasses.replace(scenario.gait, joints=[]),
         stop=stop,
         initial_head_pose=run.state[0, :3].copy(),
-        final_head_xy=run.head_xy[-1] + rng.normal(0, noise.hand_m, 2),
+        final_head_xy=run.final_head_xy + rng.normal(0, noise.hand_m, 2),
         t=t,
         q=q,
         head_yaw_rate=rate,

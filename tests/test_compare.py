@@ -110,8 +110,8 @@ def test_a_replay_reaches_the_line_its_data_ended_just_before(tmp_path):
     trial = trial_samples(trial, slice(0, len(trial.t) - 2))  # the line is now two samples past the data
     run = Replayer(trial, engine="compiled").run(Friction())
     end, period = trial.t[-1] - trial.t[0], trial.t[1] - trial.t[0]
-    assert run.stop_reason == "crossed" and end < run.t[-1] <= end + EVENT_GRACE_SAMPLES * period + 1e-9
-    assert run.head_xy[-1, 0] == pytest.approx(trial.stop.value, abs=1e-3)
+    assert run.stop_reason == "crossed" and end < run.end_t <= end + EVENT_GRACE_SAMPLES * period + 1e-9
+    assert run.final_head_xy[0] == pytest.approx(trial.stop.value, abs=1e-3)
     # Data that end further from the line than the grace reaches: the replay ends with them, short of the line,
     # and says so (not "timed_out": no clock stopped it).
     short = trial_samples(trial, slice(0, len(trial.t) - 10))
@@ -145,7 +145,7 @@ def test_a_trial_that_gives_its_start_rates_replays_from_them(tmp_path):
     given = dataclasses.replace(trial, initial_head_rates=np.array([vx, vy, trial.head_yaw_rate[0]]))
     runs = {name: Replayer(t, engine="compiled").run(Friction()) for name, t in (("rest", trial), ("given", given))}
     assert np.allclose(runs["given"].state[0, 16:19], given.initial_head_rates)
-    miss = {name: np.hypot(*(run.head_xy[-1] - trial.final_head_xy)) for name, run in runs.items()}
+    miss = {name: np.hypot(*(run.final_head_xy - trial.final_head_xy)) for name, run in runs.items()}
     assert miss["given"] < 0.5 * miss["rest"], miss
 
 
@@ -202,6 +202,8 @@ def test_a_trial_recorded_in_motion_replays_closer_from_its_fitted_start(tmp_pat
             [
                 "identify",
                 str(tmp_path / "late"),
+                "--checkpoint",
+                str(tmp_path / "checkpoint"),
                 "--method",
                 "equation-error",
                 "--start-rates",

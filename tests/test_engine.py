@@ -31,6 +31,10 @@ CAMPAIGN = "data/paper_campaign"
 def assert_equivalent(drake, compiled):
     assert drake.stop_reason == compiled.stop_reason
     np.testing.assert_allclose(compiled.t, drake.t, atol=1e-9)
+    assert (drake.event_t is None) == (compiled.event_t is None)
+    if drake.event_t is not None:  # a run through its stop event: the same instant, the same head there
+        assert compiled.event_t == pytest.approx(drake.event_t, abs=1e-9)
+        assert np.hypot(*(compiled.final_head_xy - drake.final_head_xy)) <= 1e-3
     distance = np.hypot(*(drake.head_xy[-1] - drake.head_xy[0]))
     assert np.hypot(*(compiled.head_xy[-1] - drake.head_xy[-1])) <= 0.002 * distance
     assert math.degrees(np.sqrt(np.mean((compiled.q - drake.q) ** 2))) <= 0.2
@@ -124,6 +128,28 @@ def test_log_periods_that_are_not_a_multiple_of_the_step_agree():
     drake, compiled = both(short(every_step, 0.05))
     assert len(drake.t) == 51
     np.testing.assert_allclose(compiled.state, drake.state, atol=1e-9)  # step by step: the same arithmetic
+
+
+def test_runs_through_their_stop_event_agree():
+    """Stop.run_through (every replay's): the line crossed, the run goes on to its time limit (a joint failing after
+    the crossing), the crossing's instant and state kept; the turns likewise."""
+    line = Stop(line_x_m=0.15, revolutions=None, time_limit_s=1.2, run_through=True)
+    crossing = short(Scenario(failures=[Failure(joint=7, time_s=0.9)], stop=line), 1.2)
+    drake, compiled = both(crossing)
+    assert_equivalent(drake, compiled)
+    assert drake.stop_reason == "crossed" and 0.0 < drake.event_t < 0.9 and drake.t[-1] == pytest.approx(1.2)
+    assert drake.final_head_xy[0] >= 0.15 and drake.head_xy[-1, 0] > drake.final_head_xy[0] + 0.05
+    stopped = Session(crossing).simulate(
+        dataclasses.replace(crossing, stop=dataclasses.replace(line, run_through=False))
+    )
+    np.testing.assert_allclose(stopped.final_head_xy, drake.final_head_xy, atol=1e-12)  # the same event either way
+    assert stopped.until_event().t[-1] == drake.until_event().t[-1] == pytest.approx(drake.event_t)
+    turning = dataclasses.replace(
+        crossing, stop=Stop(line_x_m=None, revolutions=0.02, time_limit_s=1.2, run_through=True)
+    )
+    drake, compiled = both(turning)
+    assert_equivalent(drake, compiled)
+    assert drake.stop_reason == "circling" and drake.event_t < 1.2
 
 
 @pytest.mark.parametrize("stem", ["nominal_1", "j2_1", "j7_1", "j13_1", "j7_bias_1"])

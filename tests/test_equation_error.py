@@ -52,6 +52,8 @@ def test_equation_error_reports_what_the_paper_gait_cannot_show(tmp_path, capsys
             [
                 "identify",
                 str(folder),
+                "--checkpoint",
+                str(tmp_path / "checkpoint"),
                 "--method",
                 "equation-error",
                 "--trials",

@@ -82,6 +82,8 @@ def test_identify_command_writes_the_friction_file_that_run_reads(campaign, tmp_
             [
                 "identify",
                 str(campaign.path),
+                "--checkpoint",
+                str(tmp_path / "checkpoint"),
                 "--iterations",
                 "1",
                 "--out",
@@ -101,7 +103,7 @@ def test_identify_command_writes_the_friction_file_that_run_reads(campaign, tmp_
     assert "Param." in printed and "std. error" in printed
     record = json.loads((tmp_path / "avs.json").read_text())
     assert record["iterations"][0]["parameter"] == "mu_lat" and record["uncertainty"]["names"] == ["mu_lat"]
-    assert record["simulations"] == 1 + 4 + 2 + 9  # start, 4 candidates, Jacobian (2), input noise (8 + 1)
+    assert record["simulations"] == 1 + 4 + 2 + 8  # start, 4 candidates, Jacobian (2), input noise (8)
     identified = load_friction_file(out)
     assert main(["run", "--friction-file", str(out), "--time-limit-s", "0.5", "--json", str(tmp_path / "r.json")]) == 0
     assert identified.mu_lat > 0 and (tmp_path / "plots" / "avs_iterations.png").stat().st_size > 5_000
@@ -139,6 +141,8 @@ def test_program_fit_descends_within_bounds(campaign, tmp_path):
             [
                 "identify",
                 str(campaign.path),
+                "--checkpoint",
+                str(tmp_path / "checkpoint"),
                 "--method",
                 "program",
                 "--iterations",
@@ -299,7 +303,7 @@ def test_input_noise_widens_the_intervals_to_cover_the_scatter(tmp_path):
     (toe,), (se_out,), (se_in,) = narrow.values, narrow.standard_errors, wide.standard_errors
     assert abs(toe - 1.0) > 3 * se_out  # the output-noise interval misses the truth ...
     assert abs(toe - 1.0) <= Z95 * se_in and se_in > 2 * se_out  # ... the one with the input noise covers it
-    assert wide.simulations == narrow.simulations + 9
+    assert wide.simulations == narrow.simulations + 8
 
 
 def test_exact_residual_jacobian_matches_finite_differences(campaign):
@@ -328,6 +332,44 @@ def test_exact_residual_jacobian_matches_finite_differences(campaign):
         expected = (at(1) - at(-1)) / (2 * h)
         assert np.abs(expected).max() > 1e-2, name
         np.testing.assert_allclose(jacobian[:, p], expected, atol=1e-4 * np.abs(expected).max(), err_msg=name)
+
+
+def test_a_step_that_moves_the_crossing_keeps_the_residual_entries_and_the_exact_column():
+    """A replay runs through its stop event, so its residuals have the trial's entries at every model: on slippery
+    friction (mu_lat 0.2, c_lat 0.3, where the snake slips and its progress depends on c_lat) a 10% step of c_lat
+    moves the crossing by more than a residual period either way, and the central difference over it is defined
+    and matches the exact column (tangent sensitivities, the final position's following the crossing): the path's
+    to 1%; the final position's only over a small step, since the swinging head's y at the line curves with the
+    crossing's time (measured: 26% apart over the 10% step, 0.2% over 0.5%)."""
+    from conftest import first_seconds
+
+    from rc1_drake.measurements import Stop as TrialStop
+    from rc1_drake.measurements import load_trial
+    from rc1_drake.replay import Replayer, replay_scenario
+    from rc1_drake.sysid.residual import RESIDUAL_PERIOD_S, trial_residual
+
+    slippery = Friction(mu_lat=0.2, c_lat=0.3)
+    trial = first_seconds(load_trial("data/paper_campaign/nominal_1.json"), 4.0)
+    at_rest = Replayer(trial, engine="compiled").run(slippery)
+    line = float(np.interp(2.5, at_rest.t, at_rest.head_xy[:, 0]))  # crossed mid-data
+    trial = dataclasses.replace(trial, stop=TrialStop("line", line))
+    replayer = Replayer(trial, engine="compiled")
+    run = replayer.session.simulate(
+        replay_scenario(trial, slippery), initial=replayer.initial, sensitivities=("c_lat",)
+    )
+    r0 = trial_residual(trial, run)
+    exact = run.residual_jacobian(lambda moved: trial_residual(trial, moved), r0)[:, 0]
+
+    def central(h):
+        runs = [replayer.run(dataclasses.replace(slippery, c_lat=slippery.c_lat * (1 + s * h))) for s in (1, -1)]
+        return runs, (trial_residual(trial, runs[0]) - trial_residual(trial, runs[1])) / (2 * h * slippery.c_lat)
+
+    (faster, slower), column = central(0.1)
+    assert faster.event_t < run.event_t - RESIDUAL_PERIOD_S and slower.event_t > run.event_t + RESIDUAL_PERIOD_S
+    assert column.shape == r0.shape
+    assert np.linalg.norm(column[2:] - exact[2:]) < 0.01 * np.linalg.norm(exact[2:])
+    _, small = central(0.005)
+    np.testing.assert_allclose(small[:2], exact[:2], atol=0.02 * np.abs(exact[:2]).max())
 
 
 def test_an_interrupted_identification_resumes_from_its_checkpoint_with_the_same_answer(campaign, tmp_path):

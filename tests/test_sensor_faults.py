@@ -147,7 +147,7 @@ def test_a_synthesized_fault_is_in_the_readings_and_a_replay_with_it_fits_as_a_f
 
     def miss(trial, fault):
         run = Replayer(trial).run(Friction(), {key: fault})
-        return float(np.hypot(*(run.head_xy[-1] - trial.final_head_xy)))
+        return float(np.hypot(*(run.final_head_xy - trial.final_head_xy)))
 
     fault_free, corrected, uncorrected = miss(trials[0.0], 0.0), miss(faulty, value), miss(faulty, 0.0)
     if truth_model == "drake":  # the replay's own model: as near as without the fault

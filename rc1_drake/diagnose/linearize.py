@@ -42,7 +42,6 @@ class Linearization:
     noise: list[np.ndarray]  # per trial: covariance of its residuals from the input noise (replay_error)
     weights: np.ndarray | None = None  # per trial (trial_weights of the noise, by default)
     bias: list[np.ndarray] | None = None  # per trial: the replay's own miss (replay_error), taken off r0
-    ends: list[float] | None = None  # per trial: where its replay at (friction, effects) ended, s
     # per trial, the residuals of its first START_FIT_S (the rows that fix its start), and their columns
     w0: list[np.ndarray] | None = None
     wcolumns: dict[str, list[np.ndarray]] | None = None
@@ -67,21 +66,12 @@ class Linearization:
         return x, r, channels, [len(self.r0[k]) for k in trials]
 
     def corrected(self, k: int, residual: np.ndarray) -> np.ndarray:
-        """Trial k's residuals of a replay with the replay's bias taken off (only the final position's when
-        this replay stops elsewhere than the one the bias was taken on)."""
-        bias = None if self.bias is None else self.bias[k]
-        if bias is None:
-            return residual
-        if len(residual) == len(bias):
-            return residual - bias
-        out = residual.copy()
-        out[:2] -= bias[:2]
-        return out
+        """Trial k's residuals of a replay with the replay's bias taken off."""
+        return residual if self.bias is None else residual - self.bias[k]
 
     def start_corrected(self, k: int, residual: np.ndarray) -> np.ndarray:
-        """Trial k's start rows with the replay's own miss on them taken off (where it lines up)."""
-        bias = None if self.start_bias is None else self.start_bias[k]
-        return residual if bias is None or len(bias) != len(residual) else residual - bias
+        """Trial k's start rows with the replay's own miss on them taken off."""
+        return residual if self.start_bias is None else residual - self.start_bias[k]
 
     def eq6_without_miss(self, k: int, corrected: np.ndarray) -> float:
         """Paper Eq. 6 of trial k from its bias-corrected residuals: the final position's error with the
@@ -153,17 +143,13 @@ def linearize(
     outputs = evaluator.map(evaluate, jobs, f"linearizing at the model ({len(coords)} directions)")
     bias = start_bias = None
     if noise is None:
-        bias, noise, start_bias = replay_errors(
-            trials, friction, effects, [b[3] for b in base], [len(b[0]) for b in base], evaluator, input_noise_samples
-        )
+        bias, noise, start_bias = replay_errors(trials, friction, effects, evaluator, input_noise_samples)
     columns = {c.name: [np.zeros(len(b[0])) for b in base] for c in coords}
-    wcolumns = {c.name: [np.zeros(len(b[4])) for b in base] for c in coords}
-    for (name, k), o in zip(where, outputs, strict=True):
+    wcolumns = {c.name: [np.zeros(len(b[3])) for b in base] for c in coords}
+    for (name, k), o in zip(where, outputs, strict=True):  # residuals have the trial's entries at every model
         step = signed_step(next(c for c in coords if c.name == name))
-        if len(o[0]) == len(base[k][0]):  # a replay that stops elsewhere has no column: 0
-            columns[name][k] = (o[0] - base[k][0]) / step
-        if len(o[4]) == len(base[k][4]):
-            wcolumns[name][k] = (o[4] - base[k][4]) / step
+        columns[name][k] = (o[0] - base[k][0]) / step
+        wcolumns[name][k] = (o[3] - base[k][3]) / step
     lin = Linearization(
         trials=list(trials),
         friction=friction,
@@ -175,8 +161,7 @@ def linearize(
         columns=columns,
         noise=list(noise),
         bias=bias,
-        ends=[b[3] for b in base],
-        w0=[b[4] for b in base],
+        w0=[b[3] for b in base],
         wcolumns=wcolumns,
         start_bias=start_bias,
     )
@@ -185,64 +170,35 @@ def linearize(
     return lin
 
 
-def replay_errors(trials, friction, effects, ends, lengths, evaluator: Evaluator, samples: int) -> tuple:
-    """Per trial, the replay's bias (None where the bootstrap does not line up with the trial's residuals of
-    `lengths`), its input-noise covariance (replay_error) and the bias of its start rows, at (friction, effects)."""
+def replay_errors(trials, friction, effects, evaluator: Evaluator, samples: int) -> tuple:
+    """Per trial, the replay's bias, its input-noise covariance (replay_error) and the bias of its start rows, at
+    (friction, effects)."""
     # Twins first, then every draw a job of its own: a campaign of a few trials keeps every core busy.
     twins = evaluator.map(
-        bootstrap_twin,
-        [(t, friction, effects, end) for t, end in zip(trials, ends, strict=True)],
-        "the replays' own error: noise-free twins",
+        bootstrap_twin, [(t, friction, effects) for t in trials], "the replays' own error: noise-free twins"
     )
-    jobs = [
-        (*made, friction, effects, end, k, i)
-        for k, (made, end) in enumerate(zip(twins, ends, strict=True))
-        if made is not None
-        for i in range(samples)
-    ]
+    jobs = [(*made, friction, effects, k, i) for k, made in enumerate(twins) for i in range(samples)]
     draws = iter(evaluator.map(bootstrap_draw, jobs, "the replays' own error: the twins replayed with noisy angles"))
-    errors = [
-        None if made is None else draws_mean_and_covariance([next(draws) for _ in range(samples)]) for made in twins
-    ]
-    bias, noise, start_bias = [], [], []
-    for error, n in zip(errors, lengths, strict=True):
-        start_bias.append(None if error is None else error[2])
-        if error is None or len(error[0]) != n:
-            bias.append(None)
-            noise.append(np.zeros((n, n)))
-            continue
-        bias.append(error[0])
-        # The bias is a mean of `samples` draws: taking it off adds 1 / samples of their covariance.
-        noise.append(error[1] * (1.0 + 1.0 / samples))
-    return bias, noise, start_bias
+    errors = [draws_mean_and_covariance([next(draws) for _ in range(samples)]) for _ in twins]
+    # The bias is a mean of `samples` draws: taking it off adds 1 / samples of their covariance.
+    return [e[0] for e in errors], [e[1] * (1.0 + 1.0 / samples) for e in errors], [e[2] for e in errors]
 
 
 def with_replay_error(lin: Linearization, evaluator: Evaluator, samples: int) -> Linearization:
     """`lin` with the replay's bias and input noise measured again at its model (their residuals moved
     from the old bias to the new one, the trial weights recomputed)."""
-    bias, noise, start_bias = replay_errors(
-        lin.trials, lin.friction, lin.effects, lin.ends, [len(r) for r in lin.r0], evaluator, samples
-    )
-    r0 = [
-        r + _moved_bias(before, after, r)
-        for r, before, after in zip(lin.r0, lin.bias or [None] * len(lin.r0), bias, strict=True)
-    ]
-    w0 = [
-        w + _moved_bias(before, after, w)
-        for w, before, after in zip(lin.w0, lin.start_bias or [None] * len(lin.w0), start_bias, strict=True)
-    ]
+    bias, noise, start_bias = replay_errors(lin.trials, lin.friction, lin.effects, evaluator, samples)
+    old_bias, old_start = lin.bias or [None] * len(lin.r0), lin.start_bias or [None] * len(lin.w0)
+    r0 = [r + _moved_bias(before, after) for r, before, after in zip(lin.r0, old_bias, bias, strict=True)]
+    w0 = [w + _moved_bias(before, after) for w, before, after in zip(lin.w0, old_start, start_bias, strict=True)]
     return dataclasses.replace(
         lin, r0=r0, bias=bias, noise=noise, weights=trial_weights(lin.trials, noise), w0=w0, start_bias=start_bias
     )
 
 
-def _moved_bias(before, after, residual) -> np.ndarray:
-    """What moves a residual from one replay bias taken off to another (None: none taken off, or not lined up)."""
-
-    def taken(bias):
-        return 0.0 if bias is None or len(bias) != len(residual) else bias
-
-    return taken(before) - taken(after)
+def _moved_bias(before, after):
+    """What moves a residual from one replay bias taken off to another (None: none taken off)."""
+    return (0.0 if before is None else before) - after
 
 
 def moved(lin: Linearization, names: list[str], values, evaluator, **kwargs) -> Linearization:
@@ -267,18 +223,9 @@ def relinearize(
     residuals with the replay's own miss taken off. `trials`: the trials with their starts at the new model."""
     trials = list(trials or lin.trials)
     out = evaluator.map(evaluate, [(t, friction, effects) for t in trials], what)
-    # A trial whose replay now stops elsewhere keeps its old residual and columns (and bias and noise).
-    stays = [len(o[0]) != len(r) for o, r in zip(out, lin.r0, strict=True)]
     target = lin
     if samples:
-        bias, noise, start_bias = replay_errors(
-            trials, friction, effects, [o[3] for o in out], [len(o[0]) for o in out], evaluator, samples
-        )
-        old = lin.bias or [None] * len(stays)
-        old_start = lin.start_bias or [None] * len(stays)
-        bias = [old[k] if s else b for k, (s, b) in enumerate(zip(stays, bias, strict=True))]
-        start_bias = [old_start[k] if s else b for k, (s, b) in enumerate(zip(stays, start_bias, strict=True))]
-        noise = [lin.noise[k] if s else n for k, (s, n) in enumerate(zip(stays, noise, strict=True))]
+        bias, noise, start_bias = replay_errors(trials, friction, effects, evaluator, samples)
         target = dataclasses.replace(
             lin, bias=bias, noise=noise, weights=trial_weights(lin.trials, noise), start_bias=start_bias
         )
@@ -287,19 +234,11 @@ def relinearize(
     names = [c.name for c in lin.coordinates]
     columns = {n: list(cols) for n, cols in lin.columns.items()}
     wcolumns = {n: list(cols) for n, cols in lin.wcolumns.items()}
-    r0, ends, w0 = [], [], []
-    for k, (o, r) in enumerate(zip(out, lin.r0, strict=True)):
-        if stays[k]:
-            r0.append(r)
-            ends.append(lin.ends[k])
-            w0.append(lin.w0[k])
-            continue
-        ends.append(o[3])
-        new = target.corrected(k, o[0])
-        r0.append(new)
-        w0.append(target.start_corrected(k, o[4]) if len(o[4]) == len(lin.w0[k]) else lin.w0[k])
-        if step @ step > 0:
-            for cols, old, now in ((columns, r, new), (wcolumns, lin.w0[k], w0[-1])):
+    r0 = [target.corrected(k, o[0]) for k, o in enumerate(out)]
+    w0 = [target.start_corrected(k, o[3]) for k, o in enumerate(out)]
+    if step @ step > 0:  # residuals have the trial's entries at every model: the secants line up
+        for k in range(len(out)):
+            for cols, old, now in ((columns, lin.r0[k], r0[k]), (wcolumns, lin.w0[k], w0[k])):
                 jacobian = np.column_stack([cols[n][k] for n in names])
                 jacobian += np.outer(now - old - jacobian @ step, step) / (step @ step)
                 for j, n in enumerate(names):
@@ -315,7 +254,6 @@ def relinearize(
         columns=columns,
         eq6=[o[1] for o in out],
         yaw_fit=[o[2] for o in out],
-        ends=ends,
         w0=w0,
         wcolumns=wcolumns,
     )

@@ -46,6 +46,7 @@ def diagnose(
     start_rates="rest",
     thresholds: Thresholds = THRESHOLDS,
     checkpoint=None,
+    on_round=None,
 ) -> Diagnosis:
     """The loop (the package's docstring) on `campaign` (its `trials`, all by default), from the model (`friction`,
     `effects`); `candidates` are effect names or groups (effects.candidate_names; by default the physical effects,
@@ -53,7 +54,9 @@ def diagnose(
     `held` stay at their values. The head's rates at t = 0 of a trial that does not give them: `start_rates`
     "rest", the protocol's convention; "fit", three nuisance coordinates per trial fixed in every fit by its first
     START_FIT_S, for data whose start follows no known convention. `checkpoint`: a folder where every replay's result
-    is kept as it arrives; a diagnosis interrupted and run again with it resumes where it stopped."""
+    is kept as it arrives; a diagnosis interrupted and run again with it resumes where it stopped. `on_round(friction,
+    effects, accepted)`: called with the model after each round that accepted an effect (so that a caller keeps it
+    whatever follows)."""
     started = time.perf_counter()
     if start_rates not in START_MODES:
         raise ValueError(f"start_rates must be one of {START_MODES}, got {start_rates!r}")
@@ -77,6 +80,8 @@ def diagnose(
         for index in range(max_rounds):
             if not search.round(index):
                 break
+            if on_round:
+                on_round(search.lin.friction, dict(search.lin.effects), list(search.accepted))
         result, left = search.finish(campaign, friction, effects, unseen)
     if probe_study:
         suggest_experiments(result.rounds, result.not_detectable, result.friction, result.effects, workers, progress)

@@ -12,17 +12,16 @@ INPUT_NOISE_SAMPLES = 6  # bootstrap replays per trial for the replay's bias and
 
 
 def evaluate(trial, friction, effects) -> tuple:
-    """One replay, scored: (standardized residuals, Eq. 6 error %, yaw-rate fit %, its end time s, the
-    standardized residuals of its first START_FIT_S at the full sampling rate: start.start_residual)."""
+    """One replay, scored: (standardized residuals, Eq. 6 error %, yaw-rate fit %, the standardized residuals of
+    its first START_FIT_S at the full sampling rate: start.start_residual)."""
     run = replay(trial, friction, effects)
     t = trial.t - trial.t[0]
     inside = t <= run.t[-1] + 1e-9
     fit = fit_percent(trial.head_yaw_rate[inside], np.interp(t[inside], run.t, run.head_yaw_rate))
     return (
         trial_residual(trial, run),
-        simulator_error(run.head_xy[-1], trial.final_head_xy, trial.initial_head_pose[:2]),
+        simulator_error(run.final_head_xy, trial.final_head_xy, trial.initial_head_pose[:2]),
         fit,
-        float(run.t[-1]),
         start_residual(trial, run, START_FIT_S),
     )
 

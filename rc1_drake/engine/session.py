@@ -129,26 +129,29 @@ class CompiledSession:
         start = time.perf_counter()
         status, k = 0, 0
         for failure in sorted((f for f in scenario.failures if 0.0 < f.time_s < t_end), key=lambda f: f.time_s):
-            status, k = run.advance(k, _updates_before(failure.time_s, dt))  # as Session: to the failure, switch, on
+            status, k = run.advance_to(_updates_before(failure.time_s, dt), k)  # as Session: to the failure, on
             if status:
                 break
             if run.log_due(k, failure.time_s):
                 run.probe(k, failure.time_s, logs=True)  # a log at t_f itself is published by AdvanceTo(t_f): before
             self._fail(failure, run.params, run.power, run.locked, run.x)
         if not status:
-            status, k = run.advance(k, _updates_before(t_end, dt))
+            status, k = run.advance_to(_updates_before(t_end, dt), k)
         wall = time.perf_counter() - start
-        t_stop = k * dt if status != 0 else t_end
         if status == NOT_FINITE:
-            raise Rc1Error(f"simulation failed at t = {t_stop:.3f} s: the state is not finite")
+            raise Rc1Error(f"simulation failed at t = {k * dt:.3f} s: the state is not finite")
+        t_stop = k * dt if status else t_end
+        if run.event is not None:
+            status = run.event[0]
         t, state, torque, sensitivity = run.logs()
         if len(t) == 0 or t[-1] < t_stop - 1e-12:  # close the logs at the exact stop time, as the Drake engine does
             t = np.append(t, t_stop)
             state = np.vstack([state, run.x])
             torque = np.vstack([torque, run.probe(k, t_stop, logs=False)])
             sensitivity = np.concatenate([sensitivity, run.sens[None]])
-        if run.names and status in _EVENT_COORDINATE:
+        if run.names and status in _EVENT_COORDINATE and run.event is None:
             sensitivity[-1] = run.at_event(k, t_stop, sensitivity[-1], _EVENT_COORDINATE[status])
+        _, event_t, event_state, event_sensitivity = run.event or (None, None, None, None)
         return Run(
             scenario=scenario,
             t=t,
@@ -159,6 +162,9 @@ class CompiledSession:
             geometry=self.geometry,
             sensitivity=sensitivity if run.names else None,
             sensitivity_names=run.names,
+            event_t=event_t,
+            event_state=event_state,
+            event_sensitivity=event_sensitivity if run.names else None,
         )
 
     def _fail(self, failure, params, power, locked, x) -> None:
@@ -220,6 +226,7 @@ class _CompiledRun:
         self.log_next, self.last_torque = np.zeros(1, dtype=np.int64), np.zeros(NUM_JOINTS)
         self.log_t, self.log_steps = _log_schedule(scenario.numerics.log_period_s, scenario.stop.time_limit_s, self.dt)
         self.names = names
+        self.run_through, self.event = scenario.stop.run_through, None
         self.dparams, self.dgravity, seeds = sensitivity_directions(scenario, names, len(self.params))
         self.sens, self.sens_z, self.sens_zh = seeds, np.zeros((len(names), NUM_JOINTS)), np.zeros(len(names))
         self.log_sens = np.zeros((len(self.log_steps), len(names), 32))
@@ -255,6 +262,18 @@ class _CompiledRun:
             numbers.upper_limit,
             *numbers.geometry.arrays,
         )
+
+    def advance_to(self, k1: int, k0: int) -> tuple:
+        """Updates k0 <= k < k1 (advance); through a stop event when the scenario runs through them (Stop.run_through):
+        the event's (status, time, state, sensitivities) kept in self.event, its rules then switched off."""
+        status, k = self.advance(k0, k1)
+        if status in _EVENT_COORDINATE and self.run_through:
+            t = k * self.dt
+            sens = self.at_event(k, t, self.sens.copy(), _EVENT_COORDINATE[status]) if self.names else None
+            self.event = (status, t, self.x.copy(), sens)
+            self.stop_row[:2] = np.nan, np.inf  # in the kernel's constants: no rule fires again
+            status, k = self.advance(k, k1)
+        return status, k
 
     def advance(self, k0: int, k1: int, t_first: float = np.nan, *, carried=None) -> tuple:
         """Updates k0 <= k < k1 (run.advance_run) on the carried state, or on `carried` (a copy) if given."""

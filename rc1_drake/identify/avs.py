@@ -22,7 +22,7 @@ from ..sysid.stats import uncertainty
 
 def eq6_error(trial, friction: Friction, effects=None) -> float:
     run = replay(trial, friction, effects)
-    return simulator_error(run.head_xy[-1], trial.final_head_xy, trial.initial_head_pose[:2])
+    return simulator_error(run.final_head_xy, trial.final_head_xy, trial.initial_head_pose[:2])
 
 
 class Eq6Objective:
@@ -170,14 +170,18 @@ def identify_avs(
     effects=None,
     input_noise_samples=INPUT_NOISE_SAMPLES,
     checkpoint=None,
+    on_fit=None,
 ):
     """AVS on the chosen trials (the model with `effects`, held fixed), then the uncertainty of its
     result (uncertainty(), with `input_noise_samples`): (AvsResult, Uncertainty). `checkpoint`: an
-    evaluate.Checkpoint that keeps every replay's result (a rerun resumes)."""
+    evaluate.Checkpoint that keeps every replay's result (a rerun resumes). `on_fit(result)`: called as the search
+    ends, before the uncertainty (so that a caller keeps the fit whatever follows)."""
     chosen = campaign.chosen(trials)
     with make_executor(workers=workers or min(os.cpu_count() or 1, len(chosen)), scheduler=scheduler) as executor:
         objective = Eq6Objective(chosen, executor=executor, effects=effects, checkpoint=checkpoint)
         result = avs(objective, start=start, iterations=iterations, parameters=parameters, progress=progress)
+        if on_fit:
+            on_fit(result)
         residuals = CampaignResiduals(chosen, executor=executor, effects=effects, checkpoint=checkpoint)
         spread = uncertainty(residuals, result.friction, parameters=parameters, input_noise_samples=input_noise_samples)
     return result, spread

@@ -192,12 +192,14 @@ def identify_program(
     screened=True,
     input_noise_samples=INPUT_NOISE_SAMPLES,
     checkpoint=None,
+    on_fit=None,
 ):
     """The program fit on the chosen trials (the model with `effects`, held fixed), then the uncertainty
     of its result over every originally free parameter. With `screened`, the parameters the start's
     uncertainty finds not identifiable stay at their start values (screen()); the result's warnings
     say so; `input_noise_samples` goes to the result's uncertainty(); `checkpoint` (evaluate.Checkpoint) keeps every
-    replay's result. Returns (ProgramResult, Uncertainty)."""
+    replay's result; `on_fit(result)` is called as the fit ends, before its uncertainty. Returns (ProgramResult,
+    Uncertainty)."""
     chosen = campaign.chosen(trials)
     parameters = parameters or DEFAULT_PARAMETERS
     with make_executor(workers=workers or min(os.cpu_count() or 1, len(chosen)), scheduler=scheduler) as executor:
@@ -208,8 +210,10 @@ def identify_program(
             else (parameters, None)
         )
         result = fit_program(residuals, start=start, parameters=fitted, max_iterations=max_iterations)
+        result.held = [p.name for p, q in zip(parameters, fitted, strict=True) if q.frozen and not p.frozen]
+        if on_fit:
+            on_fit(result)
         spread = uncertainty(residuals, result.friction, parameters=parameters, input_noise_samples=input_noise_samples)
-    result.held = [p.name for p, q in zip(parameters, fitted, strict=True) if q.frozen and not p.frozen]
     result.screening = first
     result.simulations += first.simulations if first else 0
     return result, spread

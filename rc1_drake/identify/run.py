@@ -101,6 +101,7 @@ def identify(
     scheduler=None,
     progress: Callable | None = None,
     checkpoint=None,
+    on_fit: Callable | None = None,
 ) -> Identification:
     """Identify the free friction coefficients of `campaign`'s `trials` (all by default) by `method`, from `start`
     (a model file: its coefficients and its effects, which stay fixed; the paper's manual values by default, where
@@ -108,7 +109,8 @@ def identify(
     `validation` (by default the trials not fitted). `start_rates` "fit": each trial's start is fitted once to its
     first 0.5 s at the start model and held. `progress(done, total, name, error)`: each AVS iteration.
     `checkpoint`: a folder where every replay's result is kept as it arrives; run again with it, an interrupted
-    identification resumes where it stopped."""
+    identification resumes where it stopped (a fit that ended, from its end). `on_fit(result)`: called with the fit
+    (AvsResult, ProgramResult, EquationErrorResult) as it ends, before its uncertainty and held-out errors."""
     if method not in METHODS:
         raise ValueError(f"method must be one of {METHODS}, got {method!r}")
     if start_rates not in START_MODES:
@@ -139,6 +141,7 @@ def identify(
             effects=effects,
             input_noise_samples=input_noise_samples,
             checkpoint=kept,
+            on_fit=on_fit,
         )
     elif method == "program":
         if start is None:
@@ -161,11 +164,14 @@ def identify(
             effects=effects,
             input_noise_samples=input_noise_samples,
             checkpoint=kept,
+            on_fit=on_fit,
         )
     else:
         result = identify_equation_error(
             campaign, trials=trials, start=friction, parameters=parameters, effects=effects
         )
+        if on_fit:
+            on_fit(result)
     warnings = spread.warnings() if spread is not None else result.warnings()
     if method == "program" and result.held:
         warnings.append(f"held at the start values (not identifiable at the start): {', '.join(result.held)}")

@@ -81,8 +81,13 @@ class Checkpoint:
 
     @staticmethod
     def discard(folder) -> None:
-        """Delete this code's checkpoint in `folder` (the job finished: its results are in its output)."""
+        """Delete this code's checkpoint in `folder` (the job finished: its results are in its output), and the folder
+        if nothing else is in it."""
         (Path(folder) / f"results-{code_version()}.pkl").unlink(missing_ok=True)
+        try:
+            Path(folder).rmdir()
+        except OSError:
+            pass  # other files are there (another code version's checkpoint, the user's): left alone
 
 
 class Evaluator:

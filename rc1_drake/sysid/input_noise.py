@@ -19,48 +19,35 @@ from .residual import trial_residual
 INPUT_NOISE_SAMPLES = 8
 
 
-def input_noise_covariance(trial, friction: Friction, effects, samples: int, seed: int, length=None) -> np.ndarray:
-    """Covariance of one trial's residuals over `samples` replays with resampled angle noise; `length`:
-    that of the unperturbed replay's residuals, when the caller has it (else it is replayed)."""
+def input_noise_covariance(trial, friction: Friction, effects, samples: int, seed: int) -> np.ndarray:
+    """Covariance of one trial's residuals over `samples` replays with resampled angle noise."""
     own, rng = replayer(trial), np.random.default_rng(seed)
-    if length is None:
-        length = len(trial_residual(trial, own.run(friction, effects)))
-    draws = [trial_residual(trial, own.run_resampled(friction, effects, rng)) for _ in range(samples)]
-    draws = np.array([d for d in draws if len(d) == length])  # a replay that stopped elsewhere: left out
+    draws = np.array([trial_residual(trial, own.run_resampled(friction, effects, rng)) for _ in range(samples)])
     if len(draws) < 2:
-        return np.zeros((length, length))
+        return np.zeros((draws.shape[1],) * 2) if len(draws) else np.zeros((0, 0))
     deviation = draws - draws.mean(axis=0)
     return deviation.T @ deviation / (len(draws) - 1)
 
 
-def replay_error(trial, friction, effects, until: float, samples: int, seed: int) -> tuple:
+def replay_error(trial, friction, effects, samples: int, seed: int) -> tuple:
     """What replaying this trial gets wrong, by a parametric bootstrap on its noise-free twin
     (synthesize.noise_free_twin, made by the model): `samples` draws of the trial's potentiometer noise
     (as its smoothing estimates it: Replayer.angle_noise_rad) on the twin's angles, each replayed at the model and
-    scored against the twin up to `until` (the trial's own replay's end), so that the draws line up
-    with the trial's residuals. Returns (bias, covariance): the draws' mean residual — the replay's own
-    miss on this motion, from its start state, its smoothing of noisy angles and its stiff servos
-    (measured on 3 s no-failure trials: the noise alone shifts the start transient by what a 0.3 deg
-    toe would, trial after trial) — and their covariance (the input noise; a joint-2 failure, which
-    circles, replays chaotically: there it is large). None when the draws do not line up.
-    (In this process; replay_errors spreads the twins and the draws over an executor, with the same result.)"""
-    made = bootstrap_twin(trial, friction, effects, until)
-    if made is None:
-        return None
-    return draws_mean_and_covariance(
-        [bootstrap_draw(*made, friction, effects, until, seed, i) for i in range(samples)]
-    )[:2]
+    scored against the twin, whose residuals have the trial's entries (sysid.residual.trial_residual). Returns
+    (bias, covariance): the draws' mean residual — the replay's own miss on this motion, from its start state, its
+    smoothing of noisy angles and its stiff servos (measured on 3 s no-failure trials: the noise alone shifts the
+    start transient by what a 0.3 deg toe would, trial after trial) — and their covariance (the input noise; a
+    joint-2 failure, which circles, replays chaotically: there it is large). (In this process; replay_errors
+    spreads the twins and the draws over an executor, with the same result.)"""
+    made = bootstrap_twin(trial, friction, effects)
+    return draws_mean_and_covariance([bootstrap_draw(*made, friction, effects, seed, i) for i in range(samples)])[:2]
 
 
-def bootstrap_twin(trial, friction, effects, until: float) -> tuple | None:
-    """replay_error's twin, with the trial's camera misses and its final position at `until` (so that the
-    samples kept are the trial's), and the trial's angle noise (rad); None when the twin's samples do not
-    line up with the trial's."""
-    twin = noise_free_twin(trial, friction=friction, effects=effects, head_at=until)
+def bootstrap_twin(trial, friction, effects) -> tuple:
+    """replay_error's twin, with the trial's camera misses, and the trial's angle noise (rad)."""
+    twin = noise_free_twin(trial, friction=friction, effects=effects)
     if trial.initial_head_rates is None:  # replayed from the convention, as the trial is
         twin = dataclasses.replace(twin, initial_head_rates=None)
-    if len(twin.t) != len(trial.t):
-        return None
     camera = None
     if trial.camera is not None:
         camera = twin.camera.copy()
@@ -71,7 +58,7 @@ def bootstrap_twin(trial, friction, effects, until: float) -> tuple | None:
 _TWIN_REPLAYERS: dict = {}  # per worker process: a twin (its id and angles) -> its Replayer, the last few only
 
 
-def bootstrap_draw(twin, sigma_rad: float, friction, effects, until: float, seed: int, index: int) -> tuple:
+def bootstrap_draw(twin, sigma_rad: float, friction, effects, seed: int, index: int) -> tuple:
     """Draw `index` of replay_error: the twin replayed at the model from its angles plus the `index`-th noise
     draw of the stream `seed` (so that draws split over processes are the ones one process would make); its
     residuals, and those of its start rows (start.start_residual)."""
@@ -85,14 +72,12 @@ def bootstrap_draw(twin, sigma_rad: float, friction, effects, until: float, seed
         replayer.angle_noise(rng, sigma_rad)
     angles = twin.q + replayer.angle_noise(rng, sigma_rad)
     run = replayer.run_with_angles(friction, effects, angles)
-    return trial_residual(twin, run, until=until), start_residual(twin, run, START_FIT_S)
+    return trial_residual(twin, run), start_residual(twin, run, START_FIT_S)
 
 
-def draws_mean_and_covariance(draws) -> tuple | None:
-    """(mean, covariance) of the draws' residuals, and the mean of their start rows' (None where they differ)."""
-    if len({len(d[0]) for d in draws}) != 1:
-        return None
+def draws_mean_and_covariance(draws) -> tuple:
+    """(mean, covariance) of the draws' residuals, and the mean of their start rows'."""
     residuals = np.array([d[0] for d in draws])
     deviation = residuals - residuals.mean(axis=0)
-    start = np.mean([d[1] for d in draws], axis=0) if len({len(d[1]) for d in draws}) == 1 else None
+    start = np.mean([d[1] for d in draws], axis=0)
     return residuals.mean(axis=0), deviation.T @ deviation / max(len(draws) - 1, 1), start

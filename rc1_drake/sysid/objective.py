@@ -41,8 +41,8 @@ class CampaignResiduals:
         self, friction: Friction, effects=None, *, samples: int = INPUT_NOISE_SAMPLES, seed: int = 0
     ) -> np.ndarray:
         """Block-diagonal covariance of the stacked residuals that the angle noise in the replays' input
-        causes, from `samples` resampled replays per trial (plus one unperturbed)."""
+        causes, from `samples` resampled replays per trial."""
         jobs = [(t, friction, with_fixed(self.effects, effects), samples, seed + k) for k, t in enumerate(self.trials)]
         blocks = self.evaluator.map(input_noise_covariance, jobs, "input noise")
-        self.simulations += (samples + 1) * len(self.trials)
+        self.simulations += samples * len(self.trials)
         return block_diag(*blocks)

@@ -15,24 +15,28 @@ RESIDUAL_PERIOD_S = 0.1  # s between a path's residuals, whatever the sampling r
 FINAL_CHANNEL, PATH_CHANNEL = 0, 1  # the final position (by hand); the camera path or yaw rate over time
 
 
-def trial_residual(trial, run, until=None) -> np.ndarray:
-    """Standardized residuals of one replay: the final head position and, every RESIDUAL_PERIOD_S, the
-    head's x and y where the camera saw it, or its yaw rate when the trial has no camera.
+def trial_residual(trial, run) -> np.ndarray:
+    """Standardized residuals of one replay: the final head position (the head's at the replay's stop event,
+    Run.final_head_xy) and, every RESIDUAL_PERIOD_S of the trial's samples up to the replay's time limit, the
+    head's x and y where the camera saw it, or its yaw rate when the trial has no camera. The entries, and their
+    times, are the trial's whatever the model: a replay runs through its stop event (Stop.run_through), so a
+    parameter that moves the crossing moves the residuals, not their number (a Jacobian's columns line up).
 
     Why not both: the replayed yaw rate differs from a noise-free truth's by ~0.05 rad/s RMS whatever
     the friction (the smoothed potentiometer noise shakes the head), so with a camera that channel adds
     systematic error that biases the fit more than it informs it; the camera's positions match to ~2 mm at the
-    true coefficients (measured on a 3 s joint-7 trial).
-
-    `until`: the residuals of the run up to that time (s from the start; the final position there), in
-    place of its end — so that a replay of the trial's twin lines up with the trial's own replay."""
+    true coefficients (measured on a 3 s joint-7 trial)."""
     t = trial.t - trial.t[0]
     step = max(1, int(round(RESIDUAL_PERIOD_S / (t[1] - t[0]))))
     keep = np.zeros(len(t), dtype=bool)
     keep[::step] = True
-    end = run.t[-1] if until is None else until
-    keep &= t <= end + 1e-9
-    final = run.head_xy[-1] if until is None else np.array([np.interp(end, run.t, run.head_xy[:, i]) for i in (0, 1)])
+    keep &= t <= run.scenario.stop.time_limit_s + 1e-9
+    if run.t[-1] < t[keep][-1] - 1e-9:
+        raise ValueError(
+            f"{trial.trial_id}: the replay ended at {run.t[-1]:.3f} s, before the sample at {t[keep][-1]:.3f} s "
+            "(a replay runs through its stop event: Stop.run_through)"
+        )
+    final = run.final_head_xy
     parts = [(final - trial.final_head_xy) / RESIDUAL_SIGMAS["final_m"]]
     sensors = sensor_model(run.scenario.effects)  # what the camera and the IMU would report of the run
     if trial.camera is not None:
