@@ -6,6 +6,7 @@ import json
 import numpy as np
 import pytest
 
+from rc1_drake.cli import main
 from rc1_drake.reproduce import FINDINGS, GAIT_PERIOD_S, Trace, assemble, judge, score_trial
 
 WIGGLE_RAD = 0.3  # the head's undulation in yaw, swung about the path's heading
@@ -141,3 +142,30 @@ def test_an_errored_trial_fails_its_case():
     assert result.cases[broken.label].outcome_counts["error"] == 1 and result.matches_paper(broken.label) is False
     json.dumps(result.to_json(), allow_nan=False)  # no nan: strict JSON
 
+
+def test_reproduce_command_scores_two_joints(tmp_path, capsys):
+    out, plots = tmp_path / "r.json", tmp_path / "plots"
+    argv = [
+        "reproduce",
+        "--joints",
+        "2,13",
+        "--trials",
+        "1",
+        "--workers",
+        "1",
+        "--json",
+        str(out),
+        "--plots",
+        str(plots),
+    ]
+    assert main(argv) == 0
+    printed = capsys.readouterr().out
+    assert "J2       circles: two complete revolutions" in printed and "not scored" in printed
+    record = json.loads(out.read_text())
+    assert list(record["cases"]) == ["none", "J2", "J13"]
+    for case in record["cases"].values():
+        assert {"outcome", "revolutions", "circle_diameter_m", "final_head_xy_m", "matches_paper"} <= set(case)
+        assert len(case["trials"]) == 1 and case["outcome"] in ("circling", "turned back", "crossed", "timed_out")
+    scored = [f for f in record["findings"] if f["reproduced"] is not None]
+    assert {tuple(f["cases"]) for f in scored} == {("none",), ("J2",), ("J13",)}
+    assert (plots / "findings.png").stat().st_size > 20_000 and (plots / "cases.png").stat().st_size > 20_000
