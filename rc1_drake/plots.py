@@ -220,7 +220,7 @@ def candidates_figure(candidates):
 
 def findings_figure(panels, *, line_x_m=3.18):
     """The paper's cases side by side in the style of its Figs. 8 and 10-13: per panel (a dict: title, traces,
-    paper_circle (centre, diameter) or None, paper_band_m (y_lo, y_hi) or None) the modules at t = 0 (small
+    paper_circle (centre, diameter) or None, paper_band_m (claim, (y_lo, y_hi)) or None) the modules at t = 0 (small
     circles), each trial's head path (dashed, x at its end, its fitted circle when it circled), the line, and in
     black the paper's: its mean circle, and the band of its final head y drawn on the line."""
     n = len(panels)
@@ -242,8 +242,8 @@ def findings_figure(panels, *, line_x_m=3.18):
             ax.add_patch(plt.Circle(centre, diameter / 2, fill=False, color="k", lw=2.0))
             ax.plot([], [], "k-", lw=2.0, label=f"paper: mean circle, {diameter:g} m")
         if panel.get("paper_band_m") is not None:
-            lo, hi = panel["paper_band_m"]
-            ax.plot([line_x_m, line_x_m], [lo, hi], "k-", lw=5, solid_capstyle="butt", label="paper: final head y")
+            claim, (lo, hi) = panel["paper_band_m"]
+            ax.plot([line_x_m, line_x_m], [lo, hi], "k-", lw=5, solid_capstyle="butt", label=f"paper: {claim}")
         ax.axvline(line_x_m, color="k", lw=0.6)
         ax.set_title(panel["title"], fontsize=9)
         ax.set_aspect("equal", adjustable="datalim")

@@ -36,7 +36,7 @@ SLIGHT_DRIFT_M = 1.0
 # Backward travel over one gait period beyond this is turning back, not the undulation's wiggle (the intact
 # snake advances about 1 m a period: the 3.18 m line in about 10 s, docs/sweeps.md).
 TURN_BACK_M = 0.05
-HALF_TURN = 0.5  # revolutions: a net heading change past this has a direction (the undulation swings +-0.1-0.2)
+HALF_TURN = 0.5  # revolutions: a net heading change past this has a direction (the gait swings the head +-0.15)
 OUTCOMES = ("circling", "turned back", "crossed", "timed_out", "error")
 
 
@@ -48,6 +48,11 @@ class Finding:
     claim: str
     cite: str
     checks: tuple = ()  # empty: the paper reports nothing to check
+
+    @property
+    def label(self) -> str:
+        """The row's case: the first, or the span of a finding about a run of joints."""
+        return f"{self.cases[0]}-{self.cases[-1]}" if len(self.cases) > 2 else self.cases[0]
 
 
 def _f(cases, claim, cite, *checks):
@@ -220,7 +225,8 @@ def _check_across(kind, finding: Finding, cases: dict) -> tuple[bool, str]:
     if kind == "diameters_grow":
         d = [cases[c].circle_diameter_m if cases[c].count("circling") == len(cases[c].trials) else None
              for c in finding.cases]  # fmt: skip
-        text = ", ".join("-" if v is None else f"{v:.2f}" for v in d) + " m"
+        missing = [c for c, v in zip(finding.cases, d, strict=True) if v is None]
+        text = f"no circle at {', '.join(missing)}" if missing else ", ".join(f"{v:.2f}" for v in d) + " m"
         return None not in d and all(a < b for a, b in zip(d, d[1:], strict=False)), text
     if kind == "straighter":
         this, other = (_mean([abs(v) for v in cases[c].final_y_m]) for c in finding.cases[:2])
@@ -367,7 +373,7 @@ class Reproduction:
         for v in shown:
             paper = f"{v.finding.claim} ({v.finding.cite})"
             mark = {True: "yes", False: "NO", None: "n/a"}[v.reproduced]
-            rows.append(f"{v.finding.cases[0]:<9}{paper:<62}{v.model:<44}{mark}")
+            rows.append(f"{v.finding.label:<9}{paper:<62}{v.model:<44}{mark}")
         n_yes = sum(bool(v.reproduced) for v in self.scored)
         foot = f"reproduced {n_yes} of {len(self.scored)} findings"
         skipped = len(self.verdicts) - len(shown)
@@ -408,7 +414,7 @@ class Reproduction:
         """What findings_figure draws for a case: its paths, and the paper's marks from FINDINGS."""
         mine = [f for f in FINDINGS if f.cases[0] == label]
         checks = [c for f in mine for c in f.checks]
-        band = next((c[1:] for c in checks if c[0] == "final_y"), None)
+        band = next(((f.claim, c[1:]) for f in mine for c in f.checks if c[0] == "final_y"), None)
         diameter = next((c[1] for c in checks if c[0] == "diameter"), None)
         ccw = ("direction", "CCW") in checks
         traces = [t for t in self.traces[label] if t.error is None]
