@@ -25,6 +25,7 @@ from .config import (
 from .diagnose import INPUT_NOISE_SAMPLES as DIAGNOSE_NOISE_SAMPLES
 from .engine import ENGINES, make_session, use_engine
 from .identify import INPUT_NOISE_SAMPLES
+from .reproduce import PAPER_TRIALS, TIME_LIMIT_S
 from .scenarios import DEFAULT_SCENARIOS, ModelFile, load_model_file, load_scenario, model_to_yaml, validate
 from .sysid.evaluate import Checkpoint
 
@@ -81,6 +82,7 @@ def make_parser() -> argparse.ArgumentParser:
         _add_compensate,
         _add_effects,
         _add_diagnose,
+        _add_reproduce,
     ):
         add(sub)
     # Every simulating command picks its engine.
@@ -415,6 +417,54 @@ def _add_diagnose(sub) -> None:
     _add_outputs(
         dgn, out_help="write the diagnosed model (friction and accepted effects; default out/<campaign>.model.yaml)"
     )
+
+
+def _add_reproduce(sub) -> None:
+    rep = sub.add_parser(
+        "reproduce",
+        help="the paper's section 4: no failure, joints 1-13 failed in turn, J7+bias; each finding reproduced or not",
+    )
+    rep.add_argument(
+        "--model-file",
+        type=Path,
+        metavar="MODEL.yaml",
+        help="the model (friction and effects), e.g. from rc1 diagnose (default: the paper's identified friction)",
+    )
+    rep.add_argument("--friction", type=_friction_override, action="append", default=[], metavar="NAME=VALUE")
+    rep.add_argument(
+        "--effect",
+        type=_effect,
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="add a physical effect to the model (see rc1 effects); repeatable",
+    )
+    rep.add_argument(
+        "--joints",
+        type=_joint_list,
+        default=list(range(1, 14)),
+        metavar="LIST",
+        help="failed joints, e.g. 2,7 (default 1-13); no failure always runs, J7+bias with 7",
+    )
+    rep.add_argument(
+        "--trials",
+        type=_positive_int,
+        default=PAPER_TRIALS,
+        metavar="N",
+        help=f"trials per case (default {PAPER_TRIALS}, as the paper)",
+    )
+    rep.add_argument(
+        "--time-limit-s",
+        type=_float,
+        default=TIME_LIMIT_S,
+        metavar="T",
+        help=f"end a run that neither reached the line nor circled twice after T s (default {TIME_LIMIT_S:g}: "
+        "long enough for a circle up to about 3.5 m across)",
+    )
+    rep.add_argument("--json", type=Path, metavar="PATH", help="write every case, trial and finding")
+    rep.add_argument("--plots", type=Path, metavar="DIR", help="write figures in the style of the paper's Figs. 8-13")
+    rep.add_argument("--workers", type=_positive_int, metavar="N", help="local processes (default: every core)")
+    rep.add_argument("--scheduler", metavar="ADDRESS", help="a Dask scheduler, e.g. tcp://10.0.0.5:8786")
 
 
 def _add_checkpoint(parser, *, default: str) -> None:
@@ -903,6 +953,41 @@ def cmd_diagnose(args) -> int:
     return 0
 
 
+def cmd_reproduce(args) -> int:
+    import matplotlib.pyplot as plt
+
+    from .reproduce import reproduce
+
+    friction, effects = model_from_args(dict(args.friction), args.model_file)
+    effects = {**effects, **dict(args.effect)}
+    validate(Scenario(effects=effects, stop=Stop(time_limit_s=args.time_limit_s)), where="command line")
+
+    def progress(done, total, label):
+        print(f"\r  ran {done}/{total} trials ({label})   ", end="", file=sys.stderr, flush=True)
+
+    result = reproduce(
+        friction=friction,
+        effects=effects,
+        joints=args.joints,
+        trials=args.trials,
+        workers=args.workers,
+        scheduler=args.scheduler,
+        time_limit_s=args.time_limit_s,
+        progress=progress,
+    )
+    print(file=sys.stderr)
+    print(result.format())
+    print(f"({sum(len(c.trials) for c in result.cases.values())} runs, {result.settings['wall_s']:.0f} s)")
+    if args.json:
+        _write_atomically(args.json, lambda p: p.write_text(json.dumps(result.to_json(), indent=2) + "\n"))
+    if args.plots:
+        figures = {"findings.png": result.figure(), "cases.png": result.figure(cases=tuple(result.cases))}
+        for name, fig in figures.items():
+            _write_atomically(args.plots / name, lambda p, fig=fig: fig.savefig(p, format="png", dpi=110))
+            plt.close(fig)
+    return 0
+
+
 def _jsonable(value):
     import numpy as np
 
@@ -953,6 +1038,7 @@ def main(argv=None) -> int:
             "compensate": cmd_compensate,
             "effects": cmd_effects,
             "diagnose": cmd_diagnose,
+            "reproduce": cmd_reproduce,
         }[args.command](args)
     except Rc1Error as e:
         print(f"rc1 {args.command}: error: {e}", file=sys.stderr)

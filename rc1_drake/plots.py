@@ -217,3 +217,42 @@ def candidates_figure(candidates):
     ax.grid(True, axis="x", alpha=0.3)
     fig.tight_layout()
     return fig
+
+
+def findings_figure(panels, *, line_x_m=3.18):
+    """The paper's cases side by side in the style of its Figs. 8 and 10-13: per panel (a dict: title, traces,
+    paper_circle (centre, diameter) or None, paper_band_m (claim, (y_lo, y_hi)) or None) the modules at t = 0 (small
+    circles), each trial's head path (dashed, x at its end, its fitted circle when it circled), the line, and in
+    black the paper's: its mean circle, and the band of its final head y drawn on the line."""
+    n = len(panels)
+    cols = min(3 if n <= 6 else 4, n)
+    nrows = -(-n // cols)
+    fig, axes = plt.subplots(nrows, cols, figsize=(4.2 * cols, 3.6 * nrows), squeeze=False)
+    for ax, panel in zip(axes.flat, panels, strict=False):
+        traces = panel["traces"]
+        if traces and traces[0].start_modules_xy is not None:
+            ax.plot(*traces[0].start_modules_xy.T, "o", mfc="none", color="k", ms=4, label="start configuration")
+        for k, trace in enumerate(traces):
+            (line,) = ax.plot(*trace.head_xy.T, "--", lw=1, label="model head paths" if k == 0 else None)
+            ax.plot(*trace.head_xy[-1], "x", color=line.get_color(), ms=7, mew=1.5)
+            fit = circling_fit(trace.head_xy, trace.head_yaw) if trace.stop_reason == "circling" else None
+            if fit is not None:
+                ax.add_patch(plt.Circle(fit[0], fit[1], fill=False, color=line.get_color(), lw=0.8))
+        if panel.get("paper_circle") is not None:
+            centre, diameter = panel["paper_circle"]
+            ax.add_patch(plt.Circle(centre, diameter / 2, fill=False, color="k", lw=2.0))
+            ax.plot([], [], "k-", lw=2.0, label=f"paper: mean circle, {diameter:g} m")
+        if panel.get("paper_band_m") is not None:
+            claim, (lo, hi) = panel["paper_band_m"]
+            ax.plot([line_x_m, line_x_m], [lo, hi], "k-", lw=5, solid_capstyle="butt", label=f"paper: {claim}")
+        ax.axvline(line_x_m, color="k", lw=0.6)
+        ax.set_title(panel["title"], fontsize=9)
+        ax.set_aspect("equal", adjustable="datalim")
+        ax.grid(True, alpha=0.3)
+        ax.legend(loc="best", fontsize=6)
+    for ax in axes.flat[n:]:
+        ax.axis("off")
+    fig.supxlabel("x (m)")
+    fig.supylabel("y (m)")
+    fig.tight_layout()
+    return fig

@@ -97,11 +97,23 @@ def make_jobs(
 _SESSIONS: dict = {}  # per worker process: one Session per Diagram build key
 
 
-def run_job(job: SweepJob) -> dict:
-    """Simulate one job in this process (reusing its Diagrams); never raises: errors become rows."""
+def simulate_job(job: SweepJob):
+    """The job's Run, simulated in this process on a Session kept per Diagram; Rc1Error if it diverges."""
     from .diagram import build_key
     from .engine import default_engine, make_session
 
+    scenario = validate(job.scenario, where=f"sweep job {job.label} trial {job.trial}")
+    key = (default_engine(), build_key(scenario))
+    if key not in _SESSIONS:
+        _SESSIONS[key] = make_session(scenario)
+    run = _SESSIONS[key].simulate(scenario)
+    if not np.isfinite(run.state).all():
+        raise Rc1Error("the run diverged (non-finite state)")
+    return run
+
+
+def run_job(job: SweepJob) -> dict:
+    """Simulate one job in this process (reusing its Diagrams); never raises: errors become rows."""
     row = {
         "key": job.key,
         "label": job.label,
@@ -112,13 +124,7 @@ def run_job(job: SweepJob) -> dict:
         "friction": dataclasses.asdict(job.scenario.friction),
     }
     try:
-        scenario = validate(job.scenario, where=f"sweep job {job.label} trial {job.trial}")
-        key = (default_engine(), build_key(scenario))
-        if key not in _SESSIONS:
-            _SESSIONS[key] = make_session(scenario)
-        run = _SESSIONS[key].simulate(scenario)
-        if not np.isfinite(run.state).all():
-            raise Rc1Error("the run diverged (non-finite state)")
+        run = simulate_job(job)
     except Exception as e:  # noqa: BLE001 - a failed run is data: record it and go on
         return {**row, "status": "error", "error": f"{type(e).__name__}: {' '.join(str(e).split())}"}
     summary = summarize(run).to_json()

@@ -43,6 +43,21 @@ def test_run_writes_summary_json_and_plot(tmp_path, capsys):
         (["diagnose", "data/paper_campaign", "--candidates", "wind"], "unknown effect 'wind'"),
         (["diagnose", "data/paper_campaign", "--trials", "nominal_9"], "nominal_9"),
         (["diagnose", "data/paper_campaign", "--model-file", "/nonexistent.yaml"], "/nonexistent.yaml"),
+        pytest.param(["reproduce", "--joints", "2,14"], "joint 14 does not exist", id="reproduce-joints"),
+        pytest.param(["reproduce", "--trials", "0"], "0 must be at least 1", id="reproduce-trials"),
+        pytest.param(
+            ["reproduce", "--time-limit-s", "-5"], "stop.time_limit_s: must be > 0", id="reproduce-time-limit"
+        ),
+        pytest.param(
+            ["reproduce", "--model-file", "/nonexistent.yaml"],
+            "/nonexistent.yaml: no such model file",
+            id="reproduce-model-file",
+        ),
+        pytest.param(
+            ["reproduce", "--effect", "head_drag_mu=9"],
+            "effects.head_drag_mu: must be a number in [0, 2], got 9",
+            id="reproduce-effect",
+        ),
     ],
 )
 def test_bad_options_are_one_line_errors(argv, expected, capsys):
@@ -72,13 +87,19 @@ def test_console_entry_point_reports_errors_without_traceback():
         ("compare", "--json"),
         ("run", "--json"),
         ("sweep", "--out"),
+        ("reproduce", "--json"),
+        ("reproduce", "--plots"),
     ],
 )
 def test_an_output_that_cannot_be_written_is_refused_before_any_work(tmp_path, capsys, command, option):
     blocker = tmp_path / "a_file"
     blocker.write_text("")
     target = blocker / "x" / "y.json"
-    argv = [command] + ([] if command in ("run", "sweep") else ["data/paper_campaign"]) + [option, str(target)]
+    argv = (
+        [command]
+        + ([] if command in ("run", "sweep", "reproduce") else ["data/paper_campaign"])
+        + [option, str(target)]
+    )
     assert main(argv) == 2  # at once: a diagnosis or an identification would take minutes first
     err = capsys.readouterr().err
     assert f"{option} {target}" in err and "cannot write there" in err and err.count("\n") == 1
