@@ -62,7 +62,8 @@ class Checkpoint:
                     except Exception:  # noqa: BLE001 - the end of the file, or a record the interruption cut
                         break
                     self.results[key] = value
-        self.resumed = 0  # results taken from the file by this run
+        self.loaded = set(self.results)  # what an earlier, interrupted run left
+        self.resumed = 0  # results of an earlier run taken by this one (not this run's own, asked for again)
 
     @staticmethod
     def key(function, job) -> str:
@@ -76,7 +77,7 @@ class Checkpoint:
             pickle.dump((key, value), f, protocol=5)
 
     def take(self, key: str):
-        self.resumed += 1
+        self.resumed += key in self.loaded
         return self.results[key]
 
     @staticmethod
