@@ -19,7 +19,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from .config import GRAVITY_M_S2, NUM_JOINTS, Gait, JointGait, Rc1Error
+from .config import GRAVITY_M_S2, JOINT_LIMIT_DEG, NUM_JOINTS, Gait, JointGait, Rc1Error
 
 
 @dataclasses.dataclass(frozen=True)
@@ -49,6 +49,10 @@ class ModelSetup:
     stribeck_speed_m_s: float = 0.01
     head_mu: float = 0.0
     joint_coulomb_Nm: float = 0.0
+    stop_k: float = 0.0  # N m/rad, a failed joint's compliant stop (0: the plant's stiff limit alone)
+    stop_d: float = 0.0  # N m s/rad
+    stop_onset_rad: float = 0.0
+    head_on_wheel2: float = 0.0  # head weights carried by module 2's wheel (a cantilevered head)
     wheel_toe_rad: float = 0.0
     extra_forces: list[Callable] = dataclasses.field(default_factory=list)  # f(x) -> (16,) generalized force
 
@@ -202,6 +206,40 @@ class JointCoulombFriction(Effect):
 
     def configure(self, setup, values):
         setup.joint_coulomb_Nm = values["joint_coulomb_Nm"]
+
+
+class CompliantStop(Effect):
+    """The paper's joint-limit PD (section 3) in a failed joint: past the onset angle, a restoring torque
+    -k (|q| - onset) sgn(q) - d q_dot (friction.compliant_stop), before the plant's stiff +-38 deg limit. The onset
+    sits inside the limit so that the PD, not the stiff limit, is what a swinging joint meets: a 0.5 N m load
+    compresses a 20 N m/rad stop by 1.4 deg, within the default 5 deg onset margin."""
+
+    name = "compliant_stop"
+    summary = "a failed joint meets a PD stop (stiffness, damping) from an onset inside its +-38 deg limit"
+    failed_joints_only = True
+    differentiable = False  # the tangent model (engine/tangent.py) does not carry it
+    parameters = (
+        EffectParameter("stop_k_Nm_per_rad", 0.0, 200.0, probe=5.0),
+        EffectParameter("stop_d_Nm_s_per_rad", 0.0, 2.0, default=0.05),
+        EffectParameter("stop_margin_deg", 0.0, 20.0, fitted=False, default=5.0),
+    )
+
+    def configure(self, setup, values):
+        setup.stop_k, setup.stop_d = values["stop_k_Nm_per_rad"], values["stop_d_Nm_s_per_rad"]
+        setup.stop_onset_rad = math.radians(JOINT_LIMIT_DEG - values["stop_margin_deg"])
+
+
+class HeadCantilever(Effect):
+    """The wheelless head held off the floor by the four-bar linkage, rigid in pitch: module 2's wheel carries
+    its weight, up to twice it when the head's centre is as far ahead of wheel 2 as wheel 3 is behind (the
+    moment then lifts wheel 3 by the excess). 0 is the paper's model (the head's weight nowhere)."""
+
+    name = "head_cantilever"
+    summary = "module 2's wheel carries s head weights (up to 2: the head's moment), wheel 3 loses the excess over 1"
+    parameters = (EffectParameter("head_on_wheel2", 0.0, 2.0, probe=0.2),)
+
+    def configure(self, setup, values):
+        setup.head_on_wheel2 = values["head_on_wheel2"]
 
 
 class StribeckFriction(Effect):
@@ -411,6 +449,8 @@ for _effect in (
     LongitudinalFrictionAsymmetry(),
     HeadDrag(),
     JointCoulombFriction(),
+    CompliantStop(),
+    HeadCantilever(),
     StribeckFriction(),
     WheelToe(),
     ModulePayload(),

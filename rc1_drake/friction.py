@@ -524,13 +524,14 @@ def implicit_friction_force(
 
 # Parameter layout of FrictionForces: the paper's five coefficients, eps; the effect terms (effects.py:
 # PAPER_SHAPE's four, the head's Coulomb drag coefficient and normal force, dry friction of a failed
-# joint, a payload's mass and module); then per joint its state (0 working, 1 failed free: its
+# joint, a payload's mass and module, a failed joint's compliant stop: stiffness, damping, onset angle); then per
+# joint its state (0 working, 1 failed free: its
 # friction acts, 2 locked: the plant holds it, and the solve predicts so), then per wheel its normal
 # force, then per wheel its toe angle (rad, counter-clockwise, added to the SDF's wheel yaw).
 C_JOINT, MU_LAT, MU_LONG, C_LAT, C_LONG, EPS = range(6)
 SHAPE = slice(6, 10)
-HEAD_MU, HEAD_NORMAL, JOINT_COULOMB, PAYLOAD_KG, PAYLOAD_MODULE = range(10, 15)
-SCALARS = 15
+HEAD_MU, HEAD_NORMAL, JOINT_COULOMB, PAYLOAD_KG, PAYLOAD_MODULE, STOP_K, STOP_D, STOP_ONSET = range(10, 18)
+SCALARS = 18
 WORKING, FREE, LOCKED = 0.0, 1.0, 2.0
 LOCKED_DAMPING = 1e4  # N m s/rad: in the prediction only, a locked joint barely moves
 JOINT_EPS_RAD_S = 0.01  # sgn() smoothing of a failed joint's dry friction
@@ -556,12 +557,15 @@ def friction_parameters(*, friction: Friction, sgn_smoothing_m_s: float, setup, 
     params[HEAD_MU] = setup.head_mu
     params[JOINT_COULOMB] = setup.joint_coulomb_Nm
     params[PAYLOAD_KG], params[PAYLOAD_MODULE] = setup.payload_kg, setup.payload_module
+    params[STOP_K], params[STOP_D], params[STOP_ONSET] = setup.stop_k, setup.stop_d, setup.stop_onset_rad
     weight = np.array(geometry.module_mass, dtype=float)
     if setup.payload_module:
         weight[setup.payload_module - 1] += setup.payload_kg
     weight *= -setup.gravity[2]
     params[HEAD_NORMAL] = weight[0]
-    params[normal_slice(nw)] = weight[geometry.wheel_module]
+    carried = np.zeros_like(weight)  # a cantilevered head's weight on wheels 2 and 3 (effects.HeadCantilever)
+    carried[1], carried[2] = setup.head_on_wheel2, -max(setup.head_on_wheel2 - 1.0, 0.0)
+    params[normal_slice(nw)] = (weight + carried * weight[0])[geometry.wheel_module]
     params[toe_slice(nw)] = setup.wheel_toe_rad
     return params
 
@@ -680,12 +684,13 @@ def friction_step(
         wheel_offset,
         wheel_toe,
     )
-    return _implicit_friction_force(
+    spring, stop_rate = compliant_stop(x, params, dt)
+    force, servo = _implicit_friction_force(
         jac_long,
         jac_lat,
-        joint_damping,
+        joint_damping + stop_rate,
         mass_matrix,
-        momentum_free,
+        momentum_free + dt * spring,
         x[x.shape[0] // 2 :],
         dt,
         params[MU_LONG],
@@ -704,6 +709,27 @@ def friction_step(
         servo_rate,
         power,
     )
+    return force + spring, servo  # the solve's force leaves out the spring it was given as known
+
+
+@jit
+def compliant_stop(x, params, dt):
+    """A failed (free) joint's compliant stop, the paper's joint-limit PD (section 3): past the onset angle, the
+    torque -k (q + dt v+ - onset) - d v+ (backward Euler). Returns its known part -k (|q| - onset) sgn(q) and
+    the rate d + dt k that the implicit solve adds to the joint's damping; zeros when k = 0 (the plant's stiff
+    limit alone) or the joint is within the onset. The plant's own limit stays behind it, as a hard stop."""
+    nv = x.shape[0] // 2
+    spring, rate = np.zeros(nv), np.zeros(nv)
+    k = params[STOP_K]
+    if k <= 0.0:
+        return spring, rate
+    state = params[FAILED]
+    for j in range(state.shape[0]):
+        over = abs(x[3 + j]) - params[STOP_ONSET]
+        if state[j] == FREE and over > 0.0:
+            spring[3 + j] = -np.sign(x[3 + j]) * k * over
+            rate[3 + j] = params[STOP_D] + dt * k
+    return spring, rate
 
 
 @dataclasses.dataclass(frozen=True)
