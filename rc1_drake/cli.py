@@ -382,7 +382,7 @@ def _add_diagnose(sub) -> None:
         type=_candidates,
         metavar="NAMES",
         help="comma-separated effect names or groups to consider: physical (the default), sensor (the "
-        "sensor faults), or names from rc1 effects",
+        "sensor faults), study (issue 41's mechanisms of the J2 circling), or names from rc1 effects",
     )
     dgn.add_argument("--trials", metavar="IDS", help="comma-separated trial ids (default: all)")
     dgn.add_argument(
