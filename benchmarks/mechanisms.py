@@ -51,6 +51,10 @@ SETTINGS = {
     "servo_2Nm": _s(servo={"torque_limit_Nm": 2.0}),
     "servo_stiff": _s(servo={"torque_limit_Nm": 20.0, "kp_Nm_per_rad": 200.0, "kd_Nm_s_per_rad": 2.0}),
     "servo_0.8Nm": _s(servo={"torque_limit_Nm": 0.8}),
+    # A hobby servo is a P(D) loop with no integrator: the load's steady error stays (issue 41, benchmarks/ring.py).
+    "servo_p_only": _s(servo={"ki_Nm_per_rad_s": 0.0}),
+    "servo_p_only_kp_5": _s(servo={"ki_Nm_per_rad_s": 0.0, "kp_Nm_per_rad": 5.0}),
+    "servo_p_only_kp_3": _s(servo={"ki_Nm_per_rad_s": 0.0, "kp_Nm_per_rad": 3.0}),
     "fail_1.3s": _s(fail_s=1.3),
     "phase_90": _s(phase_deg=90.0),
     "phase_180": _s(phase_deg=180.0),
