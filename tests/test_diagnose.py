@@ -329,6 +329,23 @@ def test_a_noise_free_trial_is_its_own_twin_and_its_replays_error_is_all_bias(tm
         assert np.abs(np.diag(covariance)).max() < 0.02**2
 
 
+def test_an_estimate_at_its_bound_prints_one_sided_and_a_vanishing_p_value_as_a_bound():
+    from rc1_drake.diagnose.coordinates import coordinate_bounds
+    from rc1_drake.sysid.stats import Z95_ONE_SIDED, estimate_text, p_text
+
+    assert coordinate_bounds("head_drag_mu") == (0.0, 2.0) and coordinate_bounds("j7_1:start_head_vx_m_s")[0] < -1e300
+    assert estimate_text("head_drag_mu", 0.0, 0.07, 0.0, 2.0) == (
+        f"head_drag_mu=0 (at its bound; < {Z95_ONE_SIDED * 0.07:.2g} at 95%)"
+    )
+    assert (
+        estimate_text("stribeck_ratio", 3.0, 0.5, 0.0, 3.0)
+        == f"stribeck_ratio=3 (at its bound; > {3 - Z95_ONE_SIDED * 0.5:.2g} at 95%)"
+    )
+    assert estimate_text("g", -0.5, 1.2e-16, -0.5, 0.5) == "g=-0.5 (at its bound)"  # not '+-1.2e-16'
+    assert estimate_text("wheel_toe_deg", 2.05, 0.047, -10.0, 10.0) == f"wheel_toe_deg=2.05+-{Z95 * 0.047:.2g}"
+    assert p_text(0.0) == "p < 1e-300" and p_text(0.0, bare=True) == "<1e-300" and p_text(1.4e-3) == "p = 0.0014"
+
+
 def test_subspace_cosine():
     x = np.random.default_rng(5).normal(size=(30, 2))
     assert subspace_cosine(x[:, :1], 3 * x[:, :1]) == pytest.approx(1.0)
@@ -403,6 +420,12 @@ def test_a_visible_hidden_effect_is_ranked_first_accepted_and_recovered(
     for eq6 in ("mean_eq6_without_replay_miss_pct", "mean_eq6_error_pct"):
         after, before = result.waterfall[-1][eq6], result.waterfall[-2][eq6]
         assert after - floor <= 0.5 * (before - floor), (eq6, before, after, floor)  # the error above the floor halved
+    # The report leads with the answer: the verdict, what was added with its interval, the error before and after.
+    verdict, added, error, left = result.format().splitlines()[:4]
+    assert verdict.startswith("verdict: effect_found: accepted " + effect)
+    assert added.startswith(f"added: {key}={final:.3g}+-") and added.endswith("(95%)")
+    assert error.startswith(f"mean Eq. 6 error: {result.waterfall[0]['mean_eq6_error_pct']:.2f}% (start")
+    assert left.startswith("trials still unexplained: ")
 
 
 # On these short trials a hidden head drag is explained about as well by a tilt or a longitudinal asymmetry,

@@ -3,6 +3,7 @@ one coordinate of an effect, or one of a trial's start rates) with its value and
 set."""
 
 import dataclasses
+import math
 
 from ..config import Friction
 from ..effects import LIBRARY, effect_values
@@ -14,6 +15,17 @@ from ..sysid.parameters import DEFAULT_PARAMETERS, Parameter, difference_step
 START = "start"
 START_STEPS = (0.02, 0.02, 0.1)
 START_BOUNDS = (1.0, 1.0, 5.0)
+
+
+def coordinate_bounds(name: str) -> tuple[float, float]:
+    """A coordinate's bounds by name: a friction coefficient's, an effect coordinate's (a start's are unbounded)."""
+    for p in DEFAULT_PARAMETERS:
+        if p.name == name:
+            return p.lower, p.upper
+    for p in (p for e in LIBRARY.values() for p in e.coordinate_space()):
+        if p.key == name:
+            return p.lower, p.upper
+    return -math.inf, math.inf
 
 
 def friction_coordinates(friction: Friction, held=()) -> list[Parameter]:

@@ -210,21 +210,21 @@ class _Search:
             return self.model_names, current, "nothing to refit"
         base_fit = fit(lin, self.model_names)
         refit = held_out_by_simulation(lin, base_fit, self.evaluator, label + ", refitted")
-        if first:
-            self.waterfall.append(waterfall_step("today's model, friction refitted", refit, self.trials))
         if refit.sum_of_squares >= current.sum_of_squares:
             # The linear step of a nonlinear (Coulomb) model can overshoot: keep what simulation rejects out.
             return (
                 self.nuisance,
                 current,
                 (
-                    f"kept: refitting {', '.join(self.model_names)} raised the held-out sum "
+                    f"kept: refitting {', '.join(physics_names(lin, self.model_names))} raised the held-out sum "
                     f"of squares from {current.sum_of_squares:.4g} to {refit.sum_of_squares:.4g}"
                 ),
             )
         there = moved(lin, self.model_names, base_fit.values, self.evaluator)  # the refit on all trials
         if lin.weighted_sum_of_squares(there.r0) < current.sum_of_squares:
             self.lin = there
+            if first:  # a step of the waterfall only where the model moved there
+                self.waterfall.append(waterfall_step("today's model, friction refitted", refit, self.trials))
             return self.model_names, refit, "refitted"
         return (
             self.model_names,

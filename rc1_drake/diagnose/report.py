@@ -5,7 +5,10 @@ import dataclasses
 
 import numpy as np
 
-from ..config import Z95, Friction
+from ..config import Friction
+from ..effects import coordinate_owner
+from ..sysid.stats import estimate_text, p_text
+from .coordinates import coordinate_bounds
 from .verdict import Verdict
 
 
@@ -76,10 +79,10 @@ class Round:
             f"{'dAIC':>7}  status"
         ]
         for c in self.candidates:
-            fitted = ", ".join(f"{k}={v:.3g}+-{Z95 * se:.2g}" for k, (v, se) in c.coordinates.items())
+            fitted = ", ".join(estimate_text(k, v, se, *coordinate_bounds(k)) for k, (v, se) in c.coordinates.items())
             lines.append(
                 f"{c.name:<32}{fitted:<44}{c.held_out_before:>6.2f}->{c.held_out_after:<6.2f}"
-                f"{100 * c.held_out_reduction:>5.0f}%{c.wald_p:>9.2g}{c.aic_delta:>7.0f}  {c.status}"
+                f"{100 * c.held_out_reduction:>5.0f}%{p_text(c.wald_p, bare=True):>9}{c.aic_delta:>7.0f}  {c.status}"
             )
         return "\n".join(lines)
 
@@ -157,18 +160,39 @@ class Diagnosis:
             "wall_s": self.wall_s,
         }
 
+    def summary(self) -> list[str]:
+        """The answer first: the verdict, the effects added with their intervals, the held-out error before and
+        after, and the trials left unexplained."""
+        added = [
+            estimate_text(n, v, se, *coordinate_bounds(n))
+            for n, (v, se) in self.final_coordinates.items()
+            if (owner := coordinate_owner(n)) is not None and owner.name in self.accepted
+        ]
+        lines = [f"verdict: {self.verdict}: {self.explanation}", f"added: {', '.join(added) or 'nothing'} (95%)"]
+        if self.waterfall:
+            first, last = self.waterfall[0], self.waterfall[-1]
+            lines.append(
+                f"mean Eq. 6 error: {first['mean_eq6_error_pct']:.2f}% ({first['model']}) -> "
+                f"{last['mean_eq6_error_pct']:.2f}% ({last['model']})"
+            )
+        left = ", ".join(f"{k} ({o['off_cm']:.0f} cm off)" for k, o in self.unexplained_trials.items())
+        lines.append(f"trials still unexplained: {left or 'none'}")
+        return lines
+
     def format(self) -> str:
-        """The report `rc1 diagnose` prints: each round's ranking, the candidates' visibility per case, the
-        error waterfall, what these trials cannot see, and the verdict."""
+        """The report `rc1 diagnose` prints: the answer first (summary), then each round's ranking, the candidates'
+        visibility per case, the error waterfall, what these trials cannot see, and the verdict again."""
         lines = [
+            *self.summary(),
+            "",
             f"Diagnosis of {self.campaign} ({len(self.trials)} trials; friction these data identify: "
-            f"{', '.join(self.free) or 'none'}, the others held):"
+            f"{', '.join(self.free) or 'none'}, the others held):",
         ]
         for k, r in enumerate(self.rounds):
             lines += [
                 "",
                 f"round {k + 1}: candidates against {r.baseline.label} (held-out: leave one trial out; "
-                f"final-position misfit p = {r.misfit_p:.2g}; today's model's parameters: {r.refit})",
+                f"final-position misfit {p_text(r.misfit_p)}; today's model's parameters: {r.refit})",
                 r.table(),
             ]
             if r.polished:

@@ -2,6 +2,8 @@
 
 import enum
 
+from ..sysid.stats import p_text
+
 
 class Verdict(enum.StrEnum):
     EFFECT_FOUND = "effect_found"  # effects accepted, and what is left is consistent with the noise
@@ -31,7 +33,7 @@ def verdict(accepted, left, rounds) -> tuple:
     if left.consistent and accepted:
         return Verdict.EFFECT_FOUND, (
             f"accepted {', '.join(accepted)}; what is left is consistent with the noise "
-            f"(final positions p = {left.p:.2g}){outliers}"
+            f"(final positions {p_text(left.p)}){outliers}"
         )
     partial = rounds[-1].partial if rounds else None
     if left.consistent and not partial:
@@ -42,7 +44,7 @@ def verdict(accepted, left, rounds) -> tuple:
         limits = f"; these trials would miss an effect below (3 standard errors): {', '.join(unseen)}" if unseen else ""
         return Verdict.NO_MISSING_EFFECT, (
             f"no candidate is significant on held-out trials, and the misfit is consistent "
-            f"with the noise (final positions p = {left.p:.2g}){outliers}{limits}"
+            f"with the noise (final positions {p_text(left.p)}){outliers}{limits}"
         )
     part = ""
     if partial:
@@ -53,5 +55,5 @@ def verdict(accepted, left, rounds) -> tuple:
         )
     helped = f"; {', '.join(accepted)} helped but did not explain it (partial)" if accepted else ""
     return Verdict.UNEXPLAINED, (
-        f"the residual is not explained by any candidate (final positions p = {left.p:.2g}){helped}{part}{outliers}"
+        f"the residual is not explained by any candidate (final positions {p_text(left.p)}){helped}{part}{outliers}"
     )

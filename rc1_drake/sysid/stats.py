@@ -131,6 +131,30 @@ def interval95(value: float, standard_error: float) -> list[float]:
     return [value - Z95 * standard_error, value + Z95 * standard_error]
 
 
+Z95_ONE_SIDED = 1.645  # the standard normal's 95% quantile: a one-sided bound
+
+
+def p_text(p: float, *, bare: bool = False) -> str:
+    """'p = 0.0014', and below what double precision resolves (a tail that underflowed to 0) 'p < 1e-300'; `bare`:
+    the value alone ('0.0014', '<1e-300'), for a table's column."""
+    if p < 1e-300:
+        return "<1e-300" if bare else "p < 1e-300"
+    return f"{p:.2g}" if bare else f"p = {p:.2g}"
+
+
+def estimate_text(name: str, value: float, standard_error: float, lower=-math.inf, upper=math.inf) -> str:
+    """'name=v+-h' (95%); at a bound of [lower, upper] one-sided, 'name=0 (at its bound; < 0.12 at 95%)', where the
+    fit's clipped linearization gives no two-sided interval (and none at all when the data do not move it off)."""
+    scale = max(abs(lower) if math.isfinite(lower) else 0.0, abs(upper) if math.isfinite(upper) else 0.0, 1.0)
+    side = "<" if value <= lower + 1e-9 * scale else ">" if value >= upper - 1e-9 * scale else None
+    if side is None:
+        return f"{name}={value:.3g}+-{Z95 * standard_error:.2g}"
+    if not math.isfinite(standard_error) or standard_error <= 1e-9 * scale:
+        return f"{name}={value:.3g} (at its bound)"
+    bound = value + Z95_ONE_SIDED * standard_error if side == "<" else value - Z95_ONE_SIDED * standard_error
+    return f"{name}={value:.3g} (at its bound; {side} {bound:.2g} at 95%)"
+
+
 def wald_p(fitted, names: list[str]) -> float:
     """p-value of the Wald test that the parameters `names` of a fit (its .names, .values, .covariance) are 0
     (chi-squared, one dof per parameter)."""
