@@ -413,6 +413,13 @@ def _add_diagnose(sub) -> None:
         fit="three nuisance coordinates per trial, fixed by its first 0.5 s in "
         "every fit: for data whose start follows no known convention",
     )
+    dgn.add_argument(
+        "--report",
+        type=Path,
+        metavar="DIR",
+        help="write DIR/index.html: one self-contained page with the verdict, the waterfall, each round's ranking, "
+        "where the model still fails, the model file and the command",
+    )
     _add_checkpoint(dgn, default="<campaign>")
     _add_outputs(
         dgn, out_help="write the diagnosed model (friction and accepted effects; default out/<campaign>.model.yaml)"
@@ -709,26 +716,10 @@ def cmd_compare(args) -> int:
 def write_compare_plots(report, campaign, folder: Path) -> None:
     import matplotlib.pyplot as plt
 
-    from .plots import head_path_figure, residuals_figure, yaw_rate_figure
+    from .plots import compare_figures
 
-    results = {r.trial_id: r for r in report.trials}
-    for case, trials in campaign.cases().items():
-        trials = [t for t in trials if t.trial_id in report.runs]  # the trials the report replayed
-        if not trials:
-            continue
-        name = case.replace("+", "_")
-        runs = [report.runs[t.trial_id] for t in trials]
-        figures = {
-            f"paths_{name}.png": head_path_figure(
-                runs,
-                labels=[t.trial_id for t in trials],
-                measured_final=[t.final_head_xy for t in trials],
-                title=f"case {case}: simulated paths, measured (*) vs predicted (x) ends",
-            ),
-            f"yaw_rate_{name}.png": yaw_rate_figure(trials[0], runs[0]),
-            f"residuals_{name}.png": residuals_figure([results[t.trial_id] for t in trials], title=f"case {case}"),
-        }
-        for filename, fig in figures.items():
+    for case_figures in compare_figures(report, campaign).values():
+        for filename, fig in case_figures.items():
             _write_atomically(folder / filename, lambda p, fig=fig: fig.savefig(p, format="png", dpi=110))
             plt.close(fig)
 
@@ -941,6 +932,12 @@ def cmd_diagnose(args) -> int:
         _write_atomically(
             args.json, lambda p: p.write_text(json.dumps(result.to_json(), indent=2, default=_jsonable) + "\n")
         )
+    if args.report:
+        from .diagnose.page import report_page
+
+        page = report_page(result, campaign, model_yaml=out.read_text(), command=args.command_line)
+        _write_atomically(args.report / "index.html", lambda p: p.write_text(page))
+        print(f"report: {args.report / 'index.html'}")
     if args.plots:
         write_compare_plots(result.report, campaign, args.plots / "where_it_fails")
         for name, fig in {
@@ -1006,6 +1003,7 @@ def _check_outputs(args) -> None:
         "out": args.command != "sweep",
         "plots": False,
         "checkpoint": False,
+        "report": False,
     }  # sweep's --out: a folder
     folders = [
         (f"--{name} {getattr(args, name)}", getattr(args, name).parent if is_file else getattr(args, name))

@@ -97,6 +97,30 @@ def yaw_rate_figure(trial, run, *, title=None):
     return fig
 
 
+def compare_figures(report, campaign) -> dict:
+    """Where a model fails, per case of `campaign` that `report` (compare.CampaignReport) replayed: case -> {file
+    name: Figure} of its head paths against the measured ends, its first trial's yaw rate, and its residuals."""
+    results = {r.trial_id: r for r in report.trials}
+    out = {}
+    for case, trials in campaign.cases().items():
+        trials = [t for t in trials if t.trial_id in report.runs]  # the trials the report replayed
+        if not trials:
+            continue
+        name = case.replace("+", "_")
+        runs = [report.runs[t.trial_id] for t in trials]
+        out[case] = {
+            f"paths_{name}.png": head_path_figure(
+                runs,
+                labels=[t.trial_id for t in trials],
+                measured_final=[t.final_head_xy for t in trials],
+                title=f"case {case}: simulated paths, measured (*) vs predicted (x) ends",
+            ),
+            f"yaw_rate_{name}.png": yaw_rate_figure(trials[0], runs[0]),
+            f"residuals_{name}.png": residuals_figure([results[t.trial_id] for t in trials], title=f"case {case}"),
+        }
+    return out
+
+
 def residuals_figure(results, *, title=None):
     """Residuals over time for the trials of one case: head yaw rate, and head position where a
     camera saw it (measured - simulated)."""

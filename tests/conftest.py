@@ -1,8 +1,13 @@
 """Shared runs: the Drake runs are seconds each, so a test session makes each one once."""
 
 import dataclasses
+import os
+import shutil
+import subprocess
 
+import numpy as np
 import pytest
+from matplotlib.image import imread
 
 from rc1_drake.config import Failure, Scenario
 from rc1_drake.protocol import Session
@@ -57,3 +62,31 @@ def trial_samples(trial, keep):
 def first_seconds(trial, seconds):
     """`trial`'s samples up to `seconds` from its start."""
     return trial_samples(trial, trial.t - trial.t[0] <= seconds)
+
+
+def screenshot(html, png, size=(1280, 720)) -> np.ndarray:
+    """What headless Chromium (Debian's, software WebGL) shows of a page after 3 s: RGB in [0, 1]."""
+    chromium = shutil.which("chromium")
+    if chromium is None:
+        if os.environ.get("CI"):
+            pytest.fail("chromium is missing: scripts/setup.sh installs Debian's")
+        pytest.skip("no chromium here (scripts/setup.sh installs Debian's)")
+    subprocess.run(
+        [
+            chromium,
+            "--headless",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--use-angle=swiftshader",
+            "--enable-unsafe-swiftshader",
+            f"--window-size={size[0]},{size[1]}",
+            "--hide-scrollbars",
+            "--virtual-time-budget=3000",
+            f"--screenshot={png}",
+            html.resolve().as_uri(),
+        ],
+        check=True,
+        capture_output=True,
+        timeout=120,
+    )
+    return imread(png)[..., :3]

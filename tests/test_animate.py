@@ -1,14 +1,8 @@
 """The HTML animation of a run: its recorded frames are the run's motion, so an empty or frozen
 animation cannot pass; opened in a browser (headless Chromium), it shows the robot large, from above."""
 
-import os
-import shutil
-import subprocess
-
 import numpy as np
-import pytest
-from conftest import with_stop
-from matplotlib.image import imread
+from conftest import screenshot, with_stop
 
 from rc1_drake.animate import FRAMES_PER_SECOND, recorded_frames, write_animation
 from rc1_drake.cli import main
@@ -40,40 +34,12 @@ def test_rc1_run_animate_writes_the_file(tmp_path, capsys):
     assert len(recorded_frames(out.read_text())["/drake/visualizer/rc1/module_1"][0]) == 16
 
 
-def _screenshot(html, png, size=(1280, 720)) -> np.ndarray:
-    """What headless Chromium (Debian's, software WebGL) shows of a page after 3 s: RGB in [0, 1]."""
-    chromium = shutil.which("chromium")
-    if chromium is None:
-        if os.environ.get("CI"):
-            pytest.fail("chromium is missing: scripts/setup.sh installs Debian's")
-        pytest.skip("no chromium here (scripts/setup.sh installs Debian's)")
-    subprocess.run(
-        [
-            chromium,
-            "--headless",
-            "--no-sandbox",
-            "--disable-gpu",
-            "--use-angle=swiftshader",
-            "--enable-unsafe-swiftshader",
-            f"--window-size={size[0]},{size[1]}",
-            "--hide-scrollbars",
-            "--virtual-time-budget=3000",
-            f"--screenshot={png}",
-            html.resolve().as_uri(),
-        ],
-        check=True,
-        capture_output=True,
-        timeout=120,
-    )
-    return imread(png)[..., :3]
-
-
 def test_the_animation_opens_on_the_robot_seen_from_above_with_the_line_in_view(
     tmp_path, simulate_cached, joint7_scenario
 ):
     # Meshcat's default camera showed the robot low and far: 0.2% of the view, 16% of its width (measured).
     run = simulate_cached(joint7_scenario)
-    image = _screenshot(write_animation(run, tmp_path / "j7.html"), tmp_path / "j7.png")
+    image = screenshot(write_animation(run, tmp_path / "j7.html"), tmp_path / "j7.png")
     red, green, blue = image[..., 0], image[..., 1], image[..., 2]
     robot = (blue > red + 0.25) & (blue > green + 0.1)  # the modules' blue
     line = (green > red + 0.2) & (green > blue + 0.2)  # the finish line's green

@@ -5,8 +5,10 @@ import importlib
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 import yaml
+from conftest import screenshot
 
 from rc1_drake.cli import main
 from rc1_drake.config import Friction, Stop
@@ -59,13 +61,25 @@ def test_identify_ends_with_its_report_far_from_the_data(far_campaign, tmp_path,
     assert not (tmp_path / "ck").exists()  # done: its checkpoint, and the fit kept for a failure, are gone
 
 
-def test_diagnose_ends_with_its_report_far_from_the_data(far_campaign, tmp_path, capsys):
-    out = tmp_path / "model.yaml"
+def test_diagnose_ends_with_its_report_far_from_the_data_and_its_page_shows_it(far_campaign, tmp_path, capsys):
+    """The report leads with the verdict; --report writes one page that a browser shows: the verdict's banner on
+    top, and the figures (matplotlib's first colour, the waterfall's bars) rendered from the embedded PNGs."""
+    from rc1_drake.diagnose.page import VERDICT_COLOURS
+
+    out, page = tmp_path / "model.yaml", tmp_path / "page"
     argv = ["diagnose", str(far_campaign), "--rounds", "1", "--no-probe-study", *QUICK]
-    argv += ["--checkpoint", str(tmp_path / "ck"), "--out", str(out)]
+    argv += ["--checkpoint", str(tmp_path / "ck"), "--out", str(out), "--report", str(page)]
     assert main(argv) == 0
     printed = capsys.readouterr().out
-    assert "verdict" in printed.lower() and out.exists()
+    assert printed.startswith("verdict: ") and out.exists()
+    verdict = printed.split(":")[1].strip()
+    text = (page / "index.html").read_text()
+    assert f"verdict: {verdict}" in text and out.read_text().splitlines()[2] in text and "rc1 diagnose" in text
+    image = screenshot(page / "index.html", tmp_path / "page.png", size=(1200, 2400))
+    banner = np.array([int(VERDICT_COLOURS[verdict][i : i + 2], 16) for i in (1, 3, 5)]) / 255
+    assert (np.abs(image[:300] - banner).max(axis=-1) < 0.02).sum() > 20_000  # the verdict, on top
+    tab_blue = np.array([31, 119, 180]) / 255
+    assert (np.abs(image - tab_blue).max(axis=-1) < 0.02).sum() > 2_000  # the figures, drawn
 
 
 def test_a_failure_after_the_fit_keeps_the_fit_says_where_and_resumes(far_campaign, tmp_path, capsys, monkeypatch):

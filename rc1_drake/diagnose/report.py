@@ -171,10 +171,9 @@ class Diagnosis:
         lines = [f"verdict: {self.verdict}: {self.explanation}", f"added: {', '.join(added) or 'nothing'} (95%)"]
         if self.waterfall:
             first, last = self.waterfall[0], self.waterfall[-1]
-            lines.append(
-                f"mean Eq. 6 error: {first['mean_eq6_error_pct']:.2f}% ({first['model']}) -> "
-                f"{last['mean_eq6_error_pct']:.2f}% ({last['model']})"
-            )
+            error = f"mean Eq. 6 error: {first['mean_eq6_error_pct']:.2f}% ({first['model']})"
+            moved = f" -> {last['mean_eq6_error_pct']:.2f}% ({last['model']})" if len(self.waterfall) > 1 else ""
+            lines.append(error + (moved or ", where the model stayed"))
         left = ", ".join(f"{k} ({o['off_cm']:.0f} cm off)" for k, o in self.unexplained_trials.items())
         lines.append(f"trials still unexplained: {left or 'none'}")
         return lines
