@@ -870,7 +870,9 @@ def cmd_effects(args) -> int:
     from .effects import LIBRARY
 
     for effect in LIBRARY.values():
-        print(f"{effect.name}: {effect.summary}" + ("" if effect.seen_in_replay else " (gait-driven runs only)"))
+        notes = [] if effect.seen_in_replay else ["gait-driven runs only"]
+        notes += [] if effect.default_candidate else ["study: a diagnosis candidate when asked for, --candidates study"]
+        print(f"{effect.name}: {effect.summary}" + (f" ({'; '.join(notes)})" if notes else ""))
         for p in effect.parameters:
             print(
                 f"    {p.key:<30} [{p.lower:g}, {p.upper:g}]"
