@@ -169,3 +169,29 @@ def test_reproduce_command_scores_two_joints(tmp_path, capsys):
     scored = [f for f in record["findings"] if f["reproduced"] is not None]
     assert {tuple(f["cases"]) for f in scored} == {("none",), ("J2",), ("J13",)}
     assert (plots / "findings.png").stat().st_size > 20_000 and (plots / "cases.png").stat().st_size > 20_000
+
+
+def test_the_paper_fits_targets_vanish_on_the_papers_outcomes_and_grow_with_the_miss():
+    """paper_fit's standardized shortfalls: 0 where the paper's numbers hold (J2 circling CCW twice at 0.56 m, J7
+    ending at -1.5 m, the nominal at +0.6 m), one unit a quarter band's width outside, a CW circle worse than none."""
+    from rc1_drake.paper_fit import BAND_SCALE_M, paper_cost, paper_residuals
+
+    paper = assemble(
+        traces=[circle(diameter=0.56), straight(final_y=-1.5, label="J7"), straight(final_y=0.6, label="none")]
+    )
+    assert paper_residuals(paper) == pytest.approx(
+        {"J2 revolutions": 0.0, "J2 diameter": 0.0, "J7 final y": 0.0, "none final y": 0.0}, abs=1e-9
+    )
+    assert paper_cost(paper) < 1e-18
+    off = assemble(
+        traces=[
+            circle(diameter=0.56, ccw=False),
+            straight(final_y=-1.0 + BAND_SCALE_M, label="J7"),
+            straight(final_y=-0.5, label="none"),
+        ]
+    )
+    r = paper_residuals(off)
+    assert r["J2 revolutions"] == pytest.approx(8.0) and r["J7 final y"] == pytest.approx(1.0)
+    assert r["none final y"] == pytest.approx(0.75 / BAND_SCALE_M) and paper_cost(off) > 10
+    wide = paper_residuals(assemble(traces=[circle(diameter=0.56 * 1.224)]))
+    assert wide["J2 diameter"] == pytest.approx(1.0)  # the tolerance the findings allow is one unit
