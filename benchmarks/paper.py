@@ -1,6 +1,6 @@
 """The paper's section-4 findings against a model, and what `rc1 reproduce` costs: written into docs/paper.md.
 
-    python benchmarks/paper.py [--model-file MODEL.yaml] [--workers N] [--markdown]
+    python benchmarks/paper.py [--model-file MODEL.yaml] [--servo KEY=VALUE ...] [--workers N] [--markdown]
 
 Runs `rc1 reproduce`'s library call (reproduce.reproduce: no failure, joints 1-13 failed in turn, J7+bias, five
 trials each, the compiled engine) once to compile the kernels on a single case, then the whole of it timed, and
@@ -10,12 +10,14 @@ paper's Figs. 8 and 10-13 to docs/paper_findings.png.
 """
 
 import argparse
+import dataclasses
 import os
 import time
 
 from doc_blocks import REPO_ROOT, check_block, write_block
 
-from rc1_drake.config import Scenario, Stop
+from rc1_drake.cli import _servo_override
+from rc1_drake.config import Scenario, Servo, Stop
 from rc1_drake.engine import make_session
 from rc1_drake.reproduce import reproduce
 from rc1_drake.scenarios import load_model_file
@@ -34,6 +36,8 @@ def single_run_s() -> float:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--model-file", help="a model file (friction and effects; default: the paper's model)")
+    parser.add_argument("--servo", type=_servo_override, action="append", default=[], metavar="KEY=VALUE",
+                        help="a working servo's gain (a config.Servo field); repeatable")  # fmt: skip
     parser.add_argument("--workers", type=int, default=os.cpu_count() or 1)
     parser.add_argument("--markdown", action="store_true", help="write the table and figure into docs/")
     args = parser.parse_args()
@@ -41,6 +45,7 @@ def main() -> None:
         check_block(PAGE, BLOCK, WRITER)
     model = load_model_file(args.model_file) if args.model_file else None
     kwargs = {"friction": model.friction, "effects": model.effects} if model else {}
+    kwargs["servo"] = dataclasses.replace(Servo(), **dict(args.servo))
     reproduce(joints=[2], trials=1, workers=1, **kwargs)  # compiles the kernels, outside the timing
     unit = single_run_s()
     started = time.perf_counter()
@@ -52,6 +57,7 @@ def main() -> None:
         f"{unit:.2f} s on this machine (so the whole is {wall / unit:.0f} such runs)"
     )
     model_text = f"the model of `{args.model_file}`" if args.model_file else "the paper's model"
+    model_text += "".join(f", servo {k}={v:g}" for k, v in args.servo)
     print(result.format())
     print(timing)
     if args.markdown:

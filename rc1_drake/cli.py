@@ -14,12 +14,14 @@ from pathlib import Path
 from .config import (
     FAILURE_MODES,
     FRICTION_NAMES,
+    SERVO_NAMES,
     START_MODES,
     TRUTH_MODELS,
     Failure,
     Friction,
     Rc1Error,
     Scenario,
+    Servo,
     Stop,
 )
 from .diagnose import INPUT_NOISE_SAMPLES as DIAGNOSE_NOISE_SAMPLES
@@ -41,6 +43,18 @@ def _friction_override(text: str) -> tuple[str, float]:
         raise argparse.ArgumentTypeError(f"'{text}' is not NAME=VALUE")
     if name not in FRICTION_NAMES:
         raise argparse.ArgumentTypeError(f"unknown friction coefficient '{name}' (known: {', '.join(FRICTION_NAMES)})")
+    try:
+        return name, float(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{value}' is not a number (in {text})") from None
+
+
+def _servo_override(text: str) -> tuple[str, float]:
+    name, sep, value = text.partition("=")
+    if not sep:
+        raise argparse.ArgumentTypeError(f"'{text}' is not KEY=VALUE")
+    if name not in SERVO_NAMES:
+        raise argparse.ArgumentTypeError(f"unknown servo gain '{name}' (known: {', '.join(SERVO_NAMES)})")
     try:
         return name, float(value)
     except ValueError:
@@ -445,6 +459,14 @@ def _add_reproduce(sub) -> None:
         default=[],
         metavar="NAME=VALUE",
         help="add a physical effect to the model (see rc1 effects); repeatable",
+    )
+    rep.add_argument(
+        "--servo",
+        type=_servo_override,
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help=f"set a working servo's gain ({', '.join(SERVO_NAMES)}; default the model's); repeatable",
     )
     rep.add_argument(
         "--joints",
@@ -959,7 +981,8 @@ def cmd_reproduce(args) -> int:
 
     friction, effects = model_from_args(dict(args.friction), args.model_file)
     effects = {**effects, **dict(args.effect)}
-    validate(Scenario(effects=effects, stop=Stop(time_limit_s=args.time_limit_s)), where="command line")
+    servo = dataclasses.replace(Servo(), **dict(args.servo))
+    validate(Scenario(effects=effects, servo=servo, stop=Stop(time_limit_s=args.time_limit_s)), where="command line")
 
     def progress(done, total, label):
         print(f"\r  ran {done}/{total} trials ({label})   ", end="", file=sys.stderr, flush=True)
@@ -967,6 +990,7 @@ def cmd_reproduce(args) -> int:
     result = reproduce(
         friction=friction,
         effects=effects,
+        servo=servo,
         joints=args.joints,
         trials=args.trials,
         workers=args.workers,

@@ -76,6 +76,7 @@ class Friction:
 
 
 FRICTION_NAMES = tuple(f.name for f in dataclasses.fields(Friction))
+SERVO_NAMES = tuple(f.name for f in dataclasses.fields(Servo))
 # The measurement channels' standard deviations that standardize a replay's residuals (sysid.residual.trial_residual,
 # start.py): the hand-measured final position, the IMU's yaw rate, the camera's head position.
 RESIDUAL_SIGMAS = {"final_m": 0.01, "yaw_rate_rad_s": 0.05, "camera_m": 0.01}

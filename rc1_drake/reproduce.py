@@ -15,7 +15,7 @@ from concurrent.futures import as_completed
 
 import numpy as np
 
-from .config import Failure, Friction, Stop
+from .config import Failure, Friction, Servo, Stop
 from .metrics import circle_diameter, revolutions
 
 LINE_X_M = 3.18  # Sec. 4: "a line located 3.18m from its starting location"
@@ -260,14 +260,18 @@ def case_labels(joints=range(1, 14)) -> list:
     return ["none"] + [f"J{j}" for j in joints] + (["J7+bias"] if 7 in joints else [])
 
 
-def paper_jobs(*, joints=range(1, 14), trials=PAPER_TRIALS, friction=None, effects=None, time_limit_s=TIME_LIMIT_S):
-    """The sweep jobs of the paper's cases from its start (make_jobs' trial-to-trial jitter), its stop rule."""
+def paper_jobs(
+    *, joints=range(1, 14), trials=PAPER_TRIALS, friction=None, effects=None, servo=None, time_limit_s=TIME_LIMIT_S
+):
+    """The sweep jobs of the paper's cases from its start (make_jobs' trial-to-trial jitter), its stop rule; servo:
+    the working joints' gains (a config.Servo; default the model's)."""
     from .sweep import make_jobs, single_failure_sets
 
     common = dict(
         trials=trials,
         friction=friction or Friction(),
         effects=effects,
+        servo=servo or Servo(),
         stop=Stop(line_x_m=LINE_X_M, revolutions=CIRCLING_REVOLUTIONS, time_limit_s=time_limit_s),
     )
     jobs = make_jobs(failure_sets=single_failure_sets(joints), **common)
@@ -305,6 +309,7 @@ def reproduce(
     *,
     friction=None,
     effects=None,
+    servo=None,
     joints=range(1, 14),
     trials=PAPER_TRIALS,
     workers=None,
@@ -315,7 +320,9 @@ def reproduce(
     """Run the paper's cases (case_labels(joints)) and score them against FINDINGS; progress(done, total, label)."""
     from .executor import make_executor
 
-    jobs = paper_jobs(joints=joints, trials=trials, friction=friction, effects=effects, time_limit_s=time_limit_s)
+    jobs = paper_jobs(
+        joints=joints, trials=trials, friction=friction, effects=effects, servo=servo, time_limit_s=time_limit_s
+    )
     started = time.perf_counter()
     with make_executor(workers=workers, scheduler=scheduler) as executor:
         futures = {executor.submit(run_trial, job): k for k, job in enumerate(jobs)}
@@ -327,6 +334,7 @@ def reproduce(
     settings = {
         "friction": dataclasses.asdict(friction or Friction()),
         "effects": dict(effects or {}),
+        "servo": dataclasses.asdict(servo or Servo()),
         "trials": trials,
         "time_limit_s": time_limit_s,
         "j7_bias_deg": J7_BIAS_DEG,
@@ -369,6 +377,7 @@ class Reproduction:
             f"from the paper's start; stop at the {LINE_X_M} m line, {CIRCLING_REVOLUTIONS:g} revolutions or "
             f"{s.get('time_limit_s', TIME_LIMIT_S):g} s; J7+bias {J7_BIAS_DEG:+g} deg (paper's B = {PAPER_BIAS:g})"
         )
+        head += _servo_text(s.get("servo"))
         rows = [f"{'case':<9}{'paper (where)':<62}{'model':<44}reproduced"]
         for v in shown:
             paper = f"{v.finding.claim} ({v.finding.cite})"
@@ -428,6 +437,12 @@ class Reproduction:
             "paper_circle": circle,
             "paper_band_m": band,
         }
+
+
+def _servo_text(servo) -> str:
+    """'; servo KEY=VALUE ...' for the gains that differ from the model's, empty when none does."""
+    changed = {k: v for k, v in (servo or {}).items() if v != getattr(Servo(), k)}
+    return "; servo " + " ".join(f"{k}={v:g}" for k, v in changed.items()) if changed else ""
 
 
 def _finite(value):

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .config import Failure, Friction, Gait, Numerics, Rc1Error, Scenario, Start, Stop
+from .config import Failure, Friction, Gait, Numerics, Rc1Error, Scenario, Servo, Start, Stop
 from .metrics import summarize
 from .scenarios import validate
 
@@ -59,6 +59,7 @@ def make_jobs(
     stop=None,
     numerics=None,
     effects=None,
+    servo=None,
 ) -> list[SweepJob]:
     """Jobs for each failure set (a list of Failures; [] for none) times `trials`, with the start
     phase and pose drawn around the protocol's, and optionally each friction coefficient drawn
@@ -79,6 +80,7 @@ def make_jobs(
                 )
             scenario = Scenario(
                 gait=Gait(phase_offset_deg=float(rng.normal(0, phase_jitter_deg)), bias_deg=bias_deg),
+                servo=servo or Servo(),
                 friction=drawn,
                 failures=list(failures),
                 effects=dict(effects or {}),

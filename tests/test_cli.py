@@ -53,6 +53,14 @@ def test_run_writes_summary_json_and_plot(tmp_path, capsys):
             "/nonexistent.yaml: no such model file",
             id="reproduce-model-file",
         ),
+        pytest.param(["reproduce", "--servo", "kp=3"], "unknown servo gain 'kp'", id="reproduce-servo-key"),
+        pytest.param(["reproduce", "--servo", "kp_Nm_per_rad=x"], "'x' is not a number", id="reproduce-servo-value"),
+        pytest.param(["reproduce", "--servo", "kp_Nm_per_rad"], "is not KEY=VALUE", id="reproduce-servo-form"),
+        pytest.param(
+            ["reproduce", "--servo", "ki_Nm_per_rad_s=-1"],
+            "servo.ki_Nm_per_rad_s: must be >= 0",
+            id="reproduce-servo-negative",
+        ),
         pytest.param(
             ["reproduce", "--effect", "head_drag_mu=9"],
             "effects.head_drag_mu: must be a number in [0, 2], got 9",

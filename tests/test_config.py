@@ -2,7 +2,7 @@
 
 import pytest
 
-from rc1_drake.config import Rc1Error
+from rc1_drake.config import REPO_ROOT, Rc1Error
 from rc1_drake.scenarios import DEFAULT_SCENARIOS, list_scenarios, load_scenario
 
 
@@ -12,6 +12,15 @@ def test_shipped_scenarios_load():
     for name in names:
         load_scenario(name)
     assert load_scenario("joint_7").failed_joints == [7]
+
+
+def test_paper_findings_scenarios_carry_the_p_only_servo_and_the_cantilever():
+    path = REPO_ROOT / "scenarios" / "paper_findings.yaml"
+    assert {"nominal", "joint_2", "joint_7", "joint_13"} <= set(list_scenarios(path))
+    for name in list_scenarios(path):
+        s = load_scenario(name, filename=path)
+        assert (s.servo.kp_Nm_per_rad, s.servo.ki_Nm_per_rad_s) == (5.0, 0.0) and s.effects == {"head_on_wheel2": 1.0}
+    assert load_scenario("joint_2", filename=path).failed_joints == [2]
 
 
 @pytest.mark.parametrize(

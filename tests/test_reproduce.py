@@ -6,8 +6,10 @@ import json
 import numpy as np
 import pytest
 
+import rc1_drake.reproduce
 from rc1_drake.cli import main
-from rc1_drake.reproduce import FINDINGS, GAIT_PERIOD_S, Trace, assemble, judge, score_trial
+from rc1_drake.config import Servo
+from rc1_drake.reproduce import FINDINGS, GAIT_PERIOD_S, Trace, assemble, judge, paper_jobs, score_trial
 
 WIGGLE_RAD = 0.3  # the head's undulation in yaw, swung about the path's heading
 
@@ -195,3 +197,27 @@ def test_the_paper_fits_targets_vanish_on_the_papers_outcomes_and_grow_with_the_
     assert r["none final y"] == pytest.approx(0.75 / BAND_SCALE_M) and paper_cost(off) > 10
     wide = paper_residuals(assemble(traces=[circle(diameter=0.56 * 1.224)]))
     assert wide["J2 diameter"] == pytest.approx(1.0)  # the tolerance the findings allow is one unit
+
+
+P_ONLY = Servo(kp_Nm_per_rad=3.0, ki_Nm_per_rad_s=0.0)
+
+
+def test_paper_jobs_carry_the_servo_to_every_case():
+    assert all(job.scenario.servo == Servo() for job in paper_jobs(trials=1))
+    jobs = paper_jobs(trials=2, servo=P_ONLY)
+    assert all(job.scenario.servo == P_ONLY for job in jobs)
+    assert {job.label for job in jobs} == {"none", "J7+bias"} | {f"J{j}" for j in range(1, 14)}
+
+
+def test_reproduce_command_passes_the_servo_and_prints_it(monkeypatch, capsys):
+    seen = {}
+
+    def fake(**kwargs):  # what the command asked for, scored on hand-made paths instead of simulations
+        seen["jobs"] = paper_jobs(joints=kwargs["joints"], trials=kwargs["trials"], servo=kwargs["servo"])
+        return assemble(traces=paper_like(), settings={"servo": dataclasses.asdict(kwargs["servo"]), "wall_s": 0.0})
+
+    monkeypatch.setattr(rc1_drake.reproduce, "reproduce", fake)
+    argv = ["reproduce", "--servo", "kp_Nm_per_rad=3", "--servo", "ki_Nm_per_rad_s=0", "--trials", "1"]
+    assert main(argv) == 0
+    assert seen["jobs"] and all(job.scenario.servo == P_ONLY for job in seen["jobs"])
+    assert "servo kp_Nm_per_rad=3 ki_Nm_per_rad_s=0" in capsys.readouterr().out
