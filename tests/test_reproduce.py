@@ -221,3 +221,27 @@ def test_reproduce_command_passes_the_servo_and_prints_it(monkeypatch, capsys):
     assert main(argv) == 0
     assert seen["jobs"] and all(job.scenario.servo == P_ONLY for job in seen["jobs"])
     assert "servo kp_Nm_per_rad=3 ki_Nm_per_rad_s=0" in capsys.readouterr().out
+
+
+def test_the_paper_fit_moves_a_mechanisms_parameters_toward_the_papers_numbers(monkeypatch):
+    """fit_to_paper's wiring: parameters of every kind reach the model (model_of), the paper's AVS moves them, and
+    a stand-in model whose J2 circle shrinks with Kp (1.2 m at Kp 5, 0.56 m at Kp 10) is driven toward Kp 10."""
+    from rc1_drake import paper_fit
+
+    def stand_in(*, friction, effects, servo, joints, trials, workers):
+        assert friction.mu_lat == 1.2 and effects == {"head_on_wheel2": 1.0} and servo.ki_Nm_per_rad_s == 0.0
+        diameter = 0.56 * 10.0 / servo.kp_Nm_per_rad
+        return assemble(traces=[circle(diameter=diameter), straight(final_y=-1.5, label="J7")])
+
+    monkeypatch.setattr(paper_fit, "reproduce", stand_in)
+    parameters = [paper_fit.mechanism_parameter("kp_Nm_per_rad", 1.0, 20.0)]
+    parameters += [paper_fit.mechanism_parameter(n, 0.0, 5.0) for n in ("ki_Nm_per_rad_s", "head_on_wheel2")]
+    parameters.append(paper_fit.mechanism_parameter("mu_lat", 0.5, 2.5))
+    start = {"kp_Nm_per_rad": 5.0, "ki_Nm_per_rad_s": 0.0, "head_on_wheel2": 1.0, "mu_lat": 1.2}
+    frozen = [dataclasses.replace(p, frozen=p.name != "kp_Nm_per_rad") for p in parameters]
+    result, objective = paper_fit.fit_to_paper(frozen, start, iterations=3)
+    assert result.friction.kp_Nm_per_rad == pytest.approx(10.0, rel=0.3) and result.error < result.start_error
+    assert [p.owner for p in parameters] == ["servo", "servo", "head_cantilever", "friction"]
+    assert "cost" in paper_fit.fit_table(objective) and len(objective.history) == 1 + 3 * 4
+    with pytest.raises(ValueError, match="unknown parameter 'wind'"):
+        paper_fit.mechanism_parameter("wind", 0.0, 1.0)
