@@ -37,28 +37,25 @@ class _Parser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: error: {message}\n")
 
 
-def _friction_override(text: str) -> tuple[str, float]:
-    name, sep, value = text.partition("=")
-    if not sep:
-        raise argparse.ArgumentTypeError(f"'{text}' is not NAME=VALUE")
-    if name not in FRICTION_NAMES:
-        raise argparse.ArgumentTypeError(f"unknown friction coefficient '{name}' (known: {', '.join(FRICTION_NAMES)})")
-    try:
-        return name, float(value)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"'{value}' is not a number (in {text})") from None
+def _named_value(known, what: str, form: str):
+    """An argparse type for FORM=VALUE with the name among `known` (what it names, for the one-line error)."""
+
+    def parse(text: str) -> tuple[str, float]:
+        name, sep, value = text.partition("=")
+        if not sep:
+            raise argparse.ArgumentTypeError(f"'{text}' is not {form}")
+        if name not in known:
+            raise argparse.ArgumentTypeError(f"unknown {what} '{name}' (known: {', '.join(known)})")
+        try:
+            return name, float(value)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"'{value}' is not a number (in {text})") from None
+
+    return parse
 
 
-def _servo_override(text: str) -> tuple[str, float]:
-    name, sep, value = text.partition("=")
-    if not sep:
-        raise argparse.ArgumentTypeError(f"'{text}' is not KEY=VALUE")
-    if name not in SERVO_NAMES:
-        raise argparse.ArgumentTypeError(f"unknown servo gain '{name}' (known: {', '.join(SERVO_NAMES)})")
-    try:
-        return name, float(value)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"'{value}' is not a number (in {text})") from None
+_friction_override = _named_value(FRICTION_NAMES, "friction coefficient", "NAME=VALUE")
+_servo_override = _named_value(SERVO_NAMES, "servo gain", "KEY=VALUE")
 
 
 def _html_path(text: str) -> Path:

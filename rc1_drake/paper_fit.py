@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 
-from .config import FRICTION_NAMES, Friction, Servo
+from .config import FRICTION_NAMES, SERVO_NAMES, Friction, Servo
 from .effects import parameter_owner
 from .reproduce import CIRCLING_REVOLUTIONS, DIAMETER_TOLERANCE, SLIGHT_DRIFT_M, reproduce
 from .sysid.parameters import Parameter
@@ -21,7 +21,6 @@ PAPER_DIAMETER_M = 0.56  # Fig. 10: J2's mean circle
 BAND_SCALE_M = 0.25  # a final y this far outside the paper's band is one unit of misfit (a quarter of its width)
 REVOLUTION_SCALE = 0.5  # half a revolution short of the paper's two is one unit
 FIT_CASES = (2, 3, 6, 7, 13)  # J2 and the two ends of J3-J6 (their circling), J7 and J13 (forward); none always runs
-SERVO_NAMES = tuple(f.name for f in dataclasses.fields(Servo) if f.name != "lead_s")
 
 
 def _band(value: float, lower: float, upper: float) -> float:
