@@ -70,7 +70,8 @@ def jobs_of(setting: dict, *, cases, trials: int, time_limit_s: float) -> list:
     """The paper's jobs of `cases` with the setting's changes made to each scenario."""
     joints = sorted({int(c[1:]) for c in cases if c.startswith("J")})
     friction = dataclasses.replace(PAPER, **setting["friction"])
-    jobs = paper_jobs(joints=joints, trials=trials, friction=friction, effects=setting["effects"],
+    servo = dataclasses.replace(Servo(), **setting["servo"])
+    jobs = paper_jobs(joints=joints, trials=trials, friction=friction, effects=setting["effects"], servo=servo,
                       time_limit_s=time_limit_s)  # fmt: skip
     out = []
     for job in (j for j in jobs if j.label in cases):
@@ -79,12 +80,27 @@ def jobs_of(setting: dict, *, cases, trials: int, time_limit_s: float) -> list:
         gait = s.gait
         if setting["phase_deg"] is not None:  # the wave's start phase moved, the trial's jitter kept
             gait = dataclasses.replace(gait, phase_offset_deg=gait.phase_offset_deg + setting["phase_deg"])
-        servo = dataclasses.replace(Servo(), **setting["servo"])
         if setting["hold_deg"] is not None:
-            held = [JointGait(joint=f.joint, amplitude_deg=0.0, bias_deg=setting["hold_deg"]) for f in failures]
-            gait, failures = dataclasses.replace(gait, joints=held), []
-        out.append(dataclasses.replace(job, scenario=dataclasses.replace(s, failures=failures, gait=gait, servo=servo)))
+            gait, failures = held_by_servo(gait, failures, setting["hold_deg"])
+        out.append(dataclasses.replace(job, scenario=dataclasses.replace(s, failures=failures, gait=gait)))
     return out
+
+
+def held_by_servo(gait, failures, hold_deg: float) -> tuple:
+    """(gait, failures) with each failed joint not failed but held by its servo at hold_deg (a diagnostic)."""
+    held = [JointGait(joint=f.joint, amplitude_deg=0.0, bias_deg=hold_deg) for f in failures]
+    return dataclasses.replace(gait, joints=held), []
+
+
+def trials_summary(scores) -> dict:
+    """What a row says of a case's trials (reproduce.score_trial's scores): outcomes, directions, revolutions, time."""
+    outcomes = [s.outcome for s in scores]
+    return {
+        "outcomes": ", ".join(f"{o} {outcomes.count(o)}" for o in dict.fromkeys(outcomes)),
+        "dir": "/".join(s.direction or "-" for s in scores),
+        "rev": float(np.mean([s.revolutions for s in scores])),
+        "t_s": float(np.mean([s.t_final_s for s in scores])),
+    }
 
 
 def screen(name: str, setting: dict, *, session, cases, trials: int, time_limit_s: float) -> list:
@@ -98,19 +114,15 @@ def screen(name: str, setting: dict, *, session, cases, trials: int, time_limit_
 
 def row(name: str, label: str, scored: list) -> dict:
     scores = [s for s, _ in scored]
-    outcomes = [s.outcome for s in scores]
     d = [s.circle_diameter_m for s in scores if s.circle_diameter_m]
     y = [s.final_head_xy_m[1] for s in scores]
     q2 = np.degrees(np.concatenate([r.q[:, 1] for _, r in scored]))
     return {
         "setting": name,
         "case": label,
-        "outcomes": ", ".join(f"{o} {outcomes.count(o)}" for o in dict.fromkeys(outcomes)),
-        "dir": "/".join(s.direction or "-" for s in scores),
-        "rev": float(np.mean([s.revolutions for s in scores])),
+        **trials_summary(scores),
         "diam_m": float(np.mean(d)) if d else None,
         "y_m": (min(y), max(y)),
-        "t_s": float(np.mean([s.t_final_s for s in scores])),
         "q2_mean_deg": float(q2.mean()),
     }
 

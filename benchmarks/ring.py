@@ -19,8 +19,9 @@ import math
 import time
 
 import numpy as np
+from mechanisms import held_by_servo, trials_summary
 
-from rc1_drake.config import JOINT_LIMIT_DEG, NUM_JOINTS, JointGait, Servo
+from rc1_drake.config import JOINT_LIMIT_DEG, NUM_JOINTS, Servo
 from rc1_drake.engine import make_session
 from rc1_drake.reproduce import GAIT_PERIOD_S, paper_jobs, score_trial
 
@@ -34,17 +35,14 @@ def jobs_of(*, case: str, bias_deg: float, amplitude_deg: float, trials: int, se
     """The paper's jobs of `case` (none or Jk) with the gait's bias and amplitude set on every joint; hold_deg: the
     case's joint is not failed but held by its servo at this angle (a diagnostic, as mechanisms.py's hold)."""
     joints = [int(case[1:])] if case.startswith("J") else []
-    jobs = [j for j in paper_jobs(joints=joints, trials=trials) if j.label == case]
+    jobs = paper_jobs(joints=joints, trials=trials, servo=dataclasses.replace(Servo(), **servo))
     out = []
-    for job in jobs:
+    for job in (j for j in jobs if j.label == case):
         gait = dataclasses.replace(job.scenario.gait, bias_deg=bias_deg, amplitude_deg=amplitude_deg)
         failures = job.scenario.failures
         if hold_deg is not None:
-            gait.joints = [JointGait(joint=f.joint, amplitude_deg=0.0, bias_deg=hold_deg) for f in failures]
-            failures = []
-        servo_ = dataclasses.replace(Servo(), **servo)
-        scenario = dataclasses.replace(job.scenario, gait=gait, servo=servo_, failures=failures)
-        out.append(dataclasses.replace(job, scenario=scenario))
+            gait, failures = held_by_servo(gait, failures, hold_deg)
+        out.append(dataclasses.replace(job, scenario=dataclasses.replace(job.scenario, gait=gait, failures=failures)))
     return out
 
 
@@ -69,7 +67,6 @@ def measure(session, *, case, bias_deg, amplitude_deg, trials, servo, hold_deg=N
         bend, at_limit = held_bend(run, working)
         bends.append(bend)
         limits.append(at_limit)
-    outcomes = [s.outcome for s in scores]
     d = [s.circle_diameter_m for s in scores if s.outcome == "circling" and s.circle_diameter_m]
     turned = [s.circle_diameter_m for s in scores if s.circle_diameter_m]  # any trial with a complete turn
     per_joint = np.degrees(np.mean(bends, axis=0))
@@ -78,12 +75,9 @@ def measure(session, *, case, bias_deg, amplitude_deg, trials, servo, hold_deg=N
         "case": case,
         "A_deg": amplitude_deg,
         "B_deg": bias_deg,
-        "outcomes": ", ".join(f"{o} {outcomes.count(o)}" for o in dict.fromkeys(outcomes)),
-        "dir": "/".join(s.direction or "-" for s in scores),
-        "rev": float(np.mean([s.revolutions for s in scores])),
+        **trials_summary(scores),
         "diam_m": float(np.mean(d)) if d else None,
         "turned_diam_m": float(np.mean(turned)) if turned else None,
-        "t_s": float(np.mean([s.t_final_s for s in scores])),
         "s_per_rev": float(np.mean([s.t_final_s / s.revolutions if s.revolutions else math.inf for s in scores])),
         "bend_deg": float(per_joint[working].mean()),
         "failed_q_deg": float(per_joint[failed].mean()) if failed else None,
