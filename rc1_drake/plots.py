@@ -189,6 +189,11 @@ def paths_grid_figure(rows, *, line_x_m=3.18):
         ax.set_title(label, fontsize=9)
         ax.set_aspect("equal", adjustable="box")
         ax.grid(True, alpha=0.3)
+    return _plan_grid_done(fig, axes, n)
+
+
+def _plan_grid_done(fig, axes, n: int):
+    """A grid of x-y panels finished: the unused panels off, the plane's axes labelled once."""
     for ax in axes.flat[n:]:
         ax.axis("off")
     fig.supxlabel("x (m)")
@@ -274,9 +279,4 @@ def findings_figure(panels, *, line_x_m=3.18):
         ax.set_aspect("equal", adjustable="datalim")
         ax.grid(True, alpha=0.3)
         ax.legend(loc="best", fontsize=6)
-    for ax in axes.flat[n:]:
-        ax.axis("off")
-    fig.supxlabel("x (m)")
-    fig.supylabel("y (m)")
-    fig.tight_layout()
-    return fig
+    return _plan_grid_done(fig, axes, n)

@@ -254,7 +254,7 @@ def noise_free_twin(trial: Trial, *, friction: Friction, effects=None) -> Trial:
         effects=effects,
         failures=[Failure(joint=j) for j in trial.failed_joints],
         start=Start(x_m=x, y_m=y, heading_deg=math.degrees(head_yaw + module_yaws(0.0, q0).mean())),
-        stop=dataclasses.replace(replay_scenario(trial, friction, effects).stop, run_through=True),
+        stop=replay_scenario(trial, friction, effects).stop,  # through its event, as the replays
         numerics=Numerics(log_period_s=0.0),  # every update: the trial's own sample times are interpolated
     )
     run = make_session(scenario).simulate(scenario)

@@ -24,7 +24,7 @@ def input_noise_covariance(trial, friction: Friction, effects, samples: int, see
     own, rng = replayer(trial), np.random.default_rng(seed)
     draws = np.array([trial_residual(trial, own.run_resampled(friction, effects, rng)) for _ in range(samples)])
     if len(draws) < 2:
-        return np.zeros((draws.shape[1],) * 2) if len(draws) else np.zeros((0, 0))
+        return np.zeros((draws.shape[-1],) * 2)  # too few draws for a covariance (none: an empty block)
     deviation = draws - draws.mean(axis=0)
     return deviation.T @ deviation / (len(draws) - 1)
 
