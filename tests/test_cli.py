@@ -90,6 +90,7 @@ def test_console_entry_point_reports_errors_without_traceback():
         ("diagnose", "--json"),
         ("diagnose", "--plots"),
         ("diagnose", "--checkpoint"),
+        ("diagnose", "--report"),
         ("identify", "--out"),
         ("identify", "--checkpoint"),
         ("compare", "--json"),
