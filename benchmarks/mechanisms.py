@@ -2,9 +2,10 @@
 
     python benchmarks/mechanisms.py [--settings NAME ...] [--cases none J2 J7] [--trials 2] [--time-limit-s 60]
 
-Each setting is a named change of the paper's model (SETTINGS: friction, effects, servo, failure instant, start
-phase); each runs the paper's cases (reproduce.paper_jobs: its start, its stop rule) on the compiled engine and is
-scored as `rc1 reproduce` scores them (reproduce.score_trial). It prints one row per setting and case: outcomes,
+Each setting is a named change of the paper's model or of scenarios/paper_findings.yaml's (SETTINGS: friction,
+effects, servo, failure instant, start phase, a bias); each runs the paper's cases (reproduce.paper_jobs: its start,
+its stop rule) on the compiled engine (an effect with a Python force, the tether, on the Drake engine) and is scored
+as `rc1 reproduce` scores them (reproduce.score_trial). It prints one row per setting and case: outcomes,
 direction, revolutions, circle diameter (metrics.circle_diameter over complete turns), final head y and time.
 Effect values are not validated against the library's bounds here: a screen may look past them (say so).
 """
@@ -12,20 +13,43 @@ Effect values are not validated against the library's bounds here: a screen may 
 import argparse
 import dataclasses
 import time
+from pathlib import Path
 
 import numpy as np
 
 from rc1_drake.config import Friction, JointGait, Servo
 from rc1_drake.engine import make_session
 from rc1_drake.reproduce import paper_jobs, score_trial
+from rc1_drake.scenarios import load_scenario
 
 PAPER = Friction()
+FINDINGS_FILE = Path(__file__).resolve().parents[1] / "scenarios" / "paper_findings.yaml"
 
 
-def _s(friction=None, effects=None, servo=None, fail_s=0.0, phase_deg=None, hold_deg=None):
-    """hold_deg: the failed joint is not failed but held by its servo at this angle (a diagnostic, not a failure)."""
+def _s(friction=None, effects=None, servo=None, fail_s=0.0, phase_deg=None, hold_deg=None, bias_deg=0.0):
+    """hold_deg: the failed joint is not failed but held by its servo at this angle (a diagnostic, not a failure);
+    bias_deg: a bias added to every working joint's command."""
     return dict(friction=friction or {}, effects=effects or {}, servo=servo or {}, fail_s=fail_s, phase_deg=phase_deg,
-                hold_deg=hold_deg)  # fmt: skip
+                hold_deg=hold_deg, bias_deg=bias_deg)  # fmt: skip
+
+
+def _findings(**changes):
+    """The model of scenarios/paper_findings.yaml (P-only servos, the head on wheel 2, fitted), with `changes`."""
+    s = load_scenario("nominal", filename=FINDINGS_FILE)
+    servo = {k: getattr(s.servo, k) for k in ("kp_Nm_per_rad", "ki_Nm_per_rad_s")}
+    friction = {k: v for k, v in dataclasses.asdict(s.friction).items() if v != getattr(PAPER, k)}
+    setting = _s(friction=friction, effects=dict(s.effects), servo=servo)
+    for key, value in changes.items():
+        setting[key] = {**setting[key], **value} if isinstance(value, dict) else value
+    return setting
+
+
+# The working servo's motor line (HS-5645MG at 6 V: 1.19 N m stall, 0.18 s/60 deg = 5.8 rad/s no load) leaves
+# 1.19 (1 - 1.62 / 5.8) = 0.86 N m at the gait's peak joint speed (38 deg x 140 deg/s = 1.62 rad/s): a torque limit of
+# 0.86 N m brackets the speed limit from below. Its deadband (8 us of a ~1800 us stroke, ~0.8 deg) lets each joint
+# stand anywhere within +-0.4 deg of its command: a bias of 0.4 deg on every joint brackets it.
+MOTOR_LINE_NM = 0.86
+DEADBAND_HALF_DEG = 0.4
 
 
 # name -> change of the paper's model; the physical argument and bound of each is in docs/paper.md.
@@ -63,6 +87,18 @@ SETTINGS = {
     "c_lat_10": _s(friction={"c_lat": 10.0}),
     "mu_long_0.05": _s(friction={"mu_long": 0.05, "c_long": 0.05}),
     "c_joint_0.5": _s(friction={"c_joint": 0.5}),
+    "motor_line": _s(servo={"torque_limit_Nm": MOTOR_LINE_NM}),
+    "deadband_+": _s(bias_deg=DEADBAND_HALF_DEG),
+    "deadband_-": _s(bias_deg=-DEADBAND_HALF_DEG),
+    # RC1's power tether at the tail (effects.TailTether; runs on the Drake engine: some 20 s per 60 s run).
+    "tether_0.5": _s(effects={"tail_tether_N": 0.5}),
+    "tether_1": _s(effects={"tail_tether_N": 1.0}),
+    "tether_2": _s(effects={"tail_tether_N": 2.0}),
+    "findings": _findings(),
+    "findings_motor_line": _findings(servo={"torque_limit_Nm": MOTOR_LINE_NM}),
+    "findings_deadband_+": _findings(bias_deg=DEADBAND_HALF_DEG),
+    "findings_deadband_-": _findings(bias_deg=-DEADBAND_HALF_DEG),
+    "findings_tether_1": _findings(effects={"tail_tether_N": 1.0}),
 }
 
 
@@ -77,7 +113,7 @@ def jobs_of(setting: dict, *, cases, trials: int, time_limit_s: float) -> list:
     for job in (j for j in jobs if j.label in cases):
         s = job.scenario
         failures = [dataclasses.replace(f, time_s=setting["fail_s"]) for f in s.failures]
-        gait = s.gait
+        gait = dataclasses.replace(s.gait, bias_deg=s.gait.bias_deg + setting["bias_deg"])
         if setting["phase_deg"] is not None:  # the wave's start phase moved, the trial's jitter kept
             gait = dataclasses.replace(gait, phase_offset_deg=gait.phase_offset_deg + setting["phase_deg"])
         if setting["hold_deg"] is not None:

@@ -1,15 +1,18 @@
-"""Issue 41's candidate mechanisms of the J2 circling: a failed joint's compliant stop and a cantilevered head."""
+"""Issue 41's candidate mechanisms of the J2 circling: a failed joint's compliant stop, a cantilevered head and a
+tether dragged behind the tail."""
 
 import dataclasses
 import math
 
 import numpy as np
+import pytest
 from test_engine import assert_equivalent, both, short
 
-from rc1_drake.config import JOINT_LIMIT_DEG, NUM_JOINTS, Failure, Friction, Scenario
-from rc1_drake.effects import model_setup
+from rc1_drake.config import JOINT_LIMIT_DEG, NUM_JOINTS, Failure, Friction, Gait, Scenario, Stop
+from rc1_drake.effects import TETHER_EPS_M_S, model_setup, tail_tether_force
 from rc1_drake.engine.dynamics import plant_numbers
 from rc1_drake.friction import FAILED, FREE, compliant_stop, friction_parameters, normal_slice
+from rc1_drake.protocol import simulate
 
 K, D, MARGIN_DEG = 20.0, 0.1, 5.0
 STOP = {"stop_k_Nm_per_rad": K, "stop_d_Nm_s_per_rad": D, "stop_margin_deg": MARGIN_DEG}
@@ -60,3 +63,43 @@ def test_both_engines_agree_on_a_free_joint_2_in_its_compliant_stop():
     assert np.abs(np.degrees(compiled.q[:, 1])).max() > onset  # the stop was reached
     plain = both(dataclasses.replace(scenario, effects={}))[1]
     assert np.abs(compiled.q[:, 1] - plain.q[:, 1]).max() > 1e-3  # and it changed the run
+
+
+def test_the_tail_tether_drags_the_tails_end_against_its_motion_by_hand():
+    """The straight snake along +x (module pitch 0.125 m, joints 0.0625 m behind each centre): its tail end sits
+    1.6875 m behind the head's centre; the drag there reaches each coordinate through its lever arm."""
+    geometry, tension = plant_numbers().geometry, 0.7
+    rear = -(13 * 0.125 + 0.0625)
+    x = np.zeros(32)
+    x[16 + 2] = 0.1  # turning in place: the tail end moves along y at 0.1 * rear
+    u = 0.1 * rear
+    f_y = -tension * u / math.hypot(u, TETHER_EPS_M_S)
+    force = tail_tether_force(x, geometry, tension)
+    assert force[0] == 0.0 and force[1] == pytest.approx(f_y, rel=1e-12)
+    assert force[2] == pytest.approx(rear * f_y, rel=1e-12)  # (r x F)_z about the head's centre
+    joints = -0.0625 - 0.125 * np.arange(NUM_JOINTS)
+    np.testing.assert_allclose(force[3:], (rear - joints) * f_y, rtol=1e-12)
+    x = np.zeros(32)
+    x[16] = 0.3  # rolling forward: a pull straight back, no torque
+    expected = np.zeros(16)
+    expected[0] = -tension * 0.3 / math.hypot(0.3, TETHER_EPS_M_S)
+    np.testing.assert_allclose(tail_tether_force(x, geometry, tension), expected, atol=1e-15)
+
+
+def test_the_snake_rolling_down_a_floor_with_a_tether_follows_its_scalar_equation():
+    """10 deg downhill toward +x, the straight snake (no c_long): 14 m v' = 14 m g sin a - 13 mu_long m g cos a
+    - T v / sqrt(v^2 + eps^2), integrated here on its own, against the Drake engine's run (the tether's engine)."""
+    tension, alpha, mass = 0.5, math.radians(10.0), 0.286
+    scenario = Scenario(
+        gait=Gait(amplitude_deg=0.0),
+        friction=dataclasses.replace(Friction(), c_long=0.0),
+        effects={"ground_slope_deg": 10.0, "ground_slope_direction_deg": 0.0, "tail_tether_N": tension},
+        stop=Stop(line_x_m=None, revolutions=None, time_limit_s=1.0),
+    )
+    run = simulate(scenario=scenario)
+    dt, v = 1e-5, 0.0
+    for _ in range(round(1.0 / dt)):
+        drive = 14 * mass * 9.81 * math.sin(alpha) - 13 * 0.12 * mass * 9.81 * math.cos(alpha)
+        v += dt * (drive - tension * v / math.hypot(v, TETHER_EPS_M_S)) / (14 * mass)
+    assert run.state[-1, 16] == pytest.approx(v, rel=2e-3)
+    assert abs(run.state[-1, 17]) < 1e-6
