@@ -35,6 +35,7 @@ from doc_blocks import REPO_ROOT, check_block, write_block
 
 from rc1_drake.config import Z95, Friction, Stop
 from rc1_drake.diagnose import diagnose
+from rc1_drake.diagnose.verdict import RATES_FILE, verdict_rates
 from rc1_drake.effects import LIBRARY, effect_values
 from rc1_drake.measurements import load_campaign
 from rc1_drake.synthesize import PAPER_DESIGN, Case, synthesize_campaign
@@ -92,6 +93,11 @@ CELLS = [
 def design(trials_per_case: int) -> list:
     return [Case([], trials_per_case), Case([7], trials_per_case), Case([13], trials_per_case),
             Case([7], trials_per_case, bias_deg=J7_BIAS_DEG)]  # fmt: skip
+
+
+def hidden_kind(cell: Cell) -> str:
+    """What a cell hides, as diagnose.verdict.verdict_rates reads it: nothing, library effects, or outside."""
+    return "nothing" if cell.expected == () else "outside" if cell.expected is None else "library"
 
 
 def classify(verdict: str, accepted: list, expected) -> str:
@@ -228,6 +234,14 @@ def main():
     print(head, body, summary, sep="\n")
     if args.markdown:
         write_block(PAGE, BLOCK, WRITER, head + "\n\n" + body)
+        kinds = {c.label: hidden_kind(c) for c in CELLS}
+        rates = {
+            "measured": time.strftime("%Y-%m-%d"),
+            "design": f"{args.trials_per_case} trials each of none, J7, J13, J7+bias, 10 s; {len(rows)} campaigns",
+            "command": "python benchmarks/paper_rates.py --markdown",
+            "verdicts": verdict_rates([{**r, "hidden": kinds[r["cell"]]} for r in rows if r["cell"] in kinds]),
+        }
+        RATES_FILE.write_text(json.dumps(rates, indent=1) + "\n")
         write_block(README, SUMMARY, WRITER, f"On the paper's design (`benchmarks/paper_rates.py`): {summary}.")
 
 

@@ -346,6 +346,31 @@ def test_an_estimate_at_its_bound_prints_one_sided_and_a_vanishing_p_value_as_a_
     assert p_text(0.0) == "p < 1e-300" and p_text(0.0, bare=True) == "<1e-300" and p_text(1.4e-3) == "p = 0.0014"
 
 
+def test_the_verdicts_measured_rates_count_where_each_verdict_held():
+    """effect_found holds where exactly the hidden effects were accepted; no_missing_effect where nothing was
+    hidden; unexplained and ambiguous where something was."""
+    rows = [
+        {"verdict": "effect_found", "outcome": "right", "hidden": "library"},
+        {"verdict": "effect_found", "outcome": "wrong", "hidden": "nothing"},
+        {"verdict": "no_missing_effect", "outcome": "right", "hidden": "nothing"},
+        {"verdict": "no_missing_effect", "outcome": "missed", "hidden": "library"},
+        {"verdict": "no_missing_effect", "outcome": "right", "hidden": "outside"},
+        {"verdict": "unexplained", "outcome": "right", "hidden": "outside"},
+    ]
+    rates = verdicts.verdict_rates(rows)
+    assert (rates["effect_found"]["campaigns"], rates["effect_found"]["held"]) == (2, 1)
+    assert (rates["no_missing_effect"]["campaigns"], rates["no_missing_effect"]["held"]) == (3, 1)
+    assert (rates["unexplained"]["campaigns"], rates["unexplained"]["held"]) == (1, 1)
+    assert rates["ambiguous"]["campaigns"] == 0
+    measured = {"measured": "2026-11-26", "design": "2 trials each", "verdicts": rates}
+    assert verdicts.rate_text(verdicts.Verdict.EFFECT_FOUND, measured) == (
+        "measured on the paper's design (2 trials each; 2026-11-26): effect_found held (the hidden effects exactly) "
+        "on 1 of 2 campaigns"
+    )
+    assert "none yet" in verdicts.rate_text(verdicts.Verdict.AMBIGUOUS, measured)
+    assert "none yet" in verdicts.rate_text(verdicts.Verdict.AMBIGUOUS, {})
+
+
 def test_subspace_cosine():
     x = np.random.default_rng(5).normal(size=(30, 2))
     assert subspace_cosine(x[:, :1], 3 * x[:, :1]) == pytest.approx(1.0)

@@ -9,7 +9,7 @@ from ..config import Friction
 from ..effects import coordinate_owner
 from ..sysid.stats import estimate_text, p_text
 from .coordinates import coordinate_bounds
-from .verdict import Verdict
+from .verdict import Verdict, rate_text
 
 
 @dataclasses.dataclass
@@ -168,7 +168,11 @@ class Diagnosis:
             for n, (v, se) in self.final_coordinates.items()
             if (owner := coordinate_owner(n)) is not None and owner.name in self.accepted
         ]
-        lines = [f"verdict: {self.verdict}: {self.explanation}", f"added: {', '.join(added) or 'nothing'} (95%)"]
+        lines = [
+            f"verdict: {self.verdict}: {self.explanation}",
+            rate_text(self.verdict),
+            f"added: {', '.join(added) or 'nothing'} (95%)",
+        ]
         if self.waterfall:
             first, last = self.waterfall[0], self.waterfall[-1]
             error = f"mean Eq. 6 error: {first['mean_eq6_error_pct']:.2f}% ({first['model']})"

@@ -1,6 +1,8 @@
 """The verdict of a diagnosis and its one-paragraph explanation."""
 
 import enum
+import json
+from pathlib import Path
 
 from ..sysid.stats import p_text
 
@@ -56,4 +58,39 @@ def verdict(accepted, left, rounds) -> tuple:
     helped = f"; {', '.join(accepted)} helped but did not explain it (partial)" if accepted else ""
     return Verdict.UNEXPLAINED, (
         f"the residual is not explained by any candidate (final positions {p_text(left.p)}){helped}{part}{outliers}"
+    )
+
+
+# How often each verdict was right on the paper's design, as benchmarks/paper_rates.py measured it (written there).
+RATES_FILE = Path(__file__).with_name("paper_rates.json")
+# What each verdict claims, and so which campaigns bear it out: the hidden effects found exactly, nothing hidden,
+# something hidden (that the diagnosis could not name, or not tell apart).
+VERDICT_HOLDS = {
+    Verdict.EFFECT_FOUND: ("the hidden effects exactly", lambda row: row["outcome"] == "right"),
+    Verdict.NO_MISSING_EFFECT: ("nothing hidden", lambda row: row["hidden"] == "nothing"),
+    Verdict.AMBIGUOUS: ("something hidden", lambda row: row["hidden"] != "nothing"),
+    Verdict.UNEXPLAINED: ("something hidden", lambda row: row["hidden"] != "nothing"),
+}
+
+
+def verdict_rates(rows: list[dict]) -> dict:
+    """Per verdict, over benchmark rows (each with `verdict`, `outcome` and `hidden`: "nothing", "library" or
+    "outside"): how many campaigns got it and in how many it held (VERDICT_HOLDS)."""
+    out = {}
+    for v, (meaning, holds) in VERDICT_HOLDS.items():
+        mine = [r for r in rows if r["verdict"] == v]
+        out[str(v)] = {"campaigns": len(mine), "held": sum(bool(holds(r)) for r in mine), "meaning": meaning}
+    return out
+
+
+def rate_text(verdict: Verdict, rates: dict | None = None) -> str:
+    """One line: how often this verdict held on the paper's design (RATES_FILE), or that it is not measured."""
+    if rates is None:
+        rates = json.loads(RATES_FILE.read_text()) if RATES_FILE.is_file() else {}
+    row = rates.get("verdicts", {}).get(str(verdict))
+    if not row or not row["campaigns"]:
+        return f"measured rate of {verdict} on the paper's design: none yet (benchmarks/paper_rates.py)"
+    return (
+        f"measured on the paper's design ({rates['design']}; {rates['measured']}): {verdict} held ({row['meaning']}) "
+        f"on {row['held']} of {row['campaigns']} campaigns"
     )
