@@ -30,6 +30,7 @@ of the distance travelled.
 
 from __future__ import annotations
 
+import collections
 import dataclasses
 
 import numpy as np
@@ -212,35 +213,42 @@ def jacobian_span(jac_long, jac_lat, w):
     return span
 
 
+# One step's friction laws and servos, as assemble_step takes them (friction_problem builds them): a new force term
+# enters here, in friction_problem and in assemble_step (its derivative in engine/tangent.py), and nowhere else.
+StepLaws = collections.namedtuple(
+    "StepLaws",
+    [
+        "jac_long",  # (W, nv) wheel velocity Jacobians along and across the wheels
+        "jac_lat",
+        "spans",  # (W,) how many leading coordinates move each wheel
+        "mass_damped",  # M + dt diag(joint damping)
+        "dt",
+        "mu_long",
+        "mu_lat",
+        "c_long",
+        "c_lat",
+        "normal_force",  # (W,)
+        "eps",  # the sgn() smoothing, m/s
+        "shape",  # PAPER_SHAPE's layout: asymmetries, Stribeck ratio and speed
+        "jac_head",  # (2, nv) the velocity Jacobian of the head's centre, where head_coulomb (N) drags
+        "head_coulomb",
+        "joint_coulomb",  # (nv,) failed joints' dry friction, N m, its sign smoothed at joint_eps rad/s
+        "joint_eps",
+        "servo_offset",  # (nv,) the servos' backward-Euler torque clamp(offset - rate v+, +-power)
+        "servo_rate",
+        "servo_power",
+    ],
+)
+
+
 @jit
-def assemble_step(
-    v_next,
-    tangent,
-    jac_long,
-    jac_lat,
-    spans,
-    mass_damped,
-    dt,
-    mu_long,
-    mu_lat,
-    c_long,
-    c_lat,
-    normal_force,
-    eps,
-    shape,
-    jac_head,
-    head_coulomb,
-    joint_coulomb,
-    joint_eps,
-    servo_offset,
-    servo_rate,
-    servo_power,
-    exact=False,
-):
+def assemble_step(v_next, tangent, laws, exact=False):
     """The step's generalized force f(v+) (wheels, head, joint Coulomb, servos; Eqs. 4-5) and the matrix
     mass_damped + dt * (rate of -f): its tangent (Newton) if `tangent`, else its secant (the start, which
     linearizes each Coulomb term through the origin); `exact`: the tangent unclipped (coulomb_law). Also returns
     which servos are not saturated."""
+    (jac_long, jac_lat, spans, mass_damped, dt, mu_long, mu_lat, c_long, c_lat, normal_force, eps, shape, jac_head,
+     head_coulomb, joint_coulomb, joint_eps, servo_offset, servo_rate, servo_power) = laws  # fmt: skip
     n = v_next.shape[0]
     force = np.zeros(n)
     matrix = mass_damped.copy()
@@ -282,54 +290,10 @@ def assemble_step(
 
 
 @jit
-def _step_residual(
-    v_next,
-    jac_long,
-    jac_lat,
-    spans,
-    mass_damped,
-    momentum_free,
-    dt,
-    mu_long,
-    mu_lat,
-    c_long,
-    c_lat,
-    normal_force,
-    eps,
-    shape,
-    jac_head,
-    head_coulomb,
-    joint_coulomb,
-    joint_eps,
-    servo_offset,
-    servo_rate,
-    servo_power,
-):
+def _step_residual(v_next, laws, momentum_free):
     """The backward-Euler step's residual M v+ - p_free - dt f(v+) (with c_joint in M) and its Jacobian."""
-    force, matrix, _ = assemble_step(
-        v_next,
-        True,
-        jac_long,
-        jac_lat,
-        spans,
-        mass_damped,
-        dt,
-        mu_long,
-        mu_lat,
-        c_long,
-        c_lat,
-        normal_force,
-        eps,
-        shape,
-        jac_head,
-        head_coulomb,
-        joint_coulomb,
-        joint_eps,
-        servo_offset,
-        servo_rate,
-        servo_power,
-    )
-    return mass_damped @ v_next - momentum_free - dt * force, matrix
+    force, matrix, _ = assemble_step(v_next, True, laws)
+    return laws.mass_damped @ v_next - momentum_free - laws.dt * force, matrix
 
 
 NEWTON_TOLERANCE_M_S = 1e-9  # a Newton step this small (in every velocity) ends the solve
@@ -337,84 +301,17 @@ MAX_HALVINGS = 12
 
 
 @jit
-def _implicit_friction_force(
-    jac_long,
-    jac_lat,
-    joint_damping,
-    mass_matrix,
-    momentum_free,
-    v,
-    dt,
-    mu_long,
-    mu_lat,
-    c_long,
-    c_lat,
-    normal_force,
-    eps,
-    newton_steps,
-    shape,
-    jac_head,
-    head_coulomb,
-    joint_coulomb,
-    joint_eps,
-    servo_offset,
-    servo_rate,
-    servo_power,
-):
-    mass_damped = mass_matrix + dt * np.diag(joint_damping)
-    spans = np.array([jacobian_span(jac_long, jac_lat, w) for w in range(jac_long.shape[0])])
-    args = (
-        jac_long,
-        jac_lat,
-        spans,
-        mass_damped,
-        dt,
-        mu_long,
-        mu_lat,
-        c_long,
-        c_lat,
-        normal_force,
-        eps,
-        shape,
-        jac_head,
-        head_coulomb,
-        joint_coulomb,
-        joint_eps,
-        servo_offset,
-        servo_rate,
-        servo_power,
-    )
+def _implicit_friction_force(laws, mass_matrix, momentum_free, v, newton_steps):
+    dt, servo_offset, servo_rate, servo_power = laws.dt, laws.servo_offset, laws.servo_rate, laws.servo_power
     # The secant start: each Coulomb term through the origin at its rate at v; the servos as they stand at
     # v, linear where not saturated, a constant torque where saturated.
-    _, matrix, linear = assemble_step(v, False, *args)
+    _, matrix, linear = assemble_step(v, False, laws)
     servo = _servo_torque(servo_offset, servo_rate, servo_power, v)[0]
     v_next = spd_solve(matrix, momentum_free + dt * (linear * servo_offset + (1.0 - linear) * servo))
     # Newton steps from that secant start, each backtracked until the residual's norm falls (Armijo): a plain
     # Newton step cycles where the servo clamp or a Coulomb kink switches within the step, and the servos then
     # chatter (seen at 1 ms on noisy measured angles with two undamped steps).
-    residual, matrix = _step_residual(
-        v_next,
-        jac_long,
-        jac_lat,
-        spans,
-        mass_damped,
-        momentum_free,
-        dt,
-        mu_long,
-        mu_lat,
-        c_long,
-        c_lat,
-        normal_force,
-        eps,
-        shape,
-        jac_head,
-        head_coulomb,
-        joint_coulomb,
-        joint_eps,
-        servo_offset,
-        servo_rate,
-        servo_power,
-    )
+    residual, matrix = _step_residual(v_next, laws, momentum_free)
     for _ in range(newton_steps):
         step = spd_solve(matrix, residual)
         if np.abs(step).max() < NEWTON_TOLERANCE_M_S:  # converged: take the last step, nothing left to check
@@ -424,29 +321,7 @@ def _implicit_friction_force(
         alpha = 1.0
         for _ in range(MAX_HALVINGS):
             trial = v_next - alpha * step
-            trial_residual, trial_matrix = _step_residual(
-                trial,
-                jac_long,
-                jac_lat,
-                spans,
-                mass_damped,
-                momentum_free,
-                dt,
-                mu_long,
-                mu_lat,
-                c_long,
-                c_lat,
-                normal_force,
-                eps,
-                shape,
-                jac_head,
-                head_coulomb,
-                joint_coulomb,
-                joint_eps,
-                servo_offset,
-                servo_rate,
-                servo_power,
-            )
+            trial_residual, trial_matrix = _step_residual(trial, laws, momentum_free)
             if trial_residual @ trial_residual <= (1.0 - 1e-4 * alpha) * norm:
                 break
             alpha *= 0.5
@@ -495,30 +370,29 @@ def implicit_friction_force(
     """
     nv = len(v)
     offset, rate, power = (np.zeros(nv),) * 3 if servo is None else (np.asarray(s, dtype=float) for s in servo)
-    force, torque = _implicit_friction_force(
+    jac_long, jac_lat = np.ascontiguousarray(jac_long, dtype=float), np.ascontiguousarray(jac_lat, dtype=float)
+    laws = StepLaws(
         jac_long,
         jac_lat,
-        joint_damping,
-        mass_matrix,
-        momentum_free,
-        v,
-        dt,
-        mu_long,
-        mu_lat,
-        c_long,
-        c_lat,
-        normal_force,
-        eps,
-        newton_steps,
+        np.array([jacobian_span(jac_long, jac_lat, w) for w in range(jac_long.shape[0])]),
+        mass_matrix + dt * np.diag(joint_damping),
+        float(dt),
+        float(mu_long),
+        float(mu_lat),
+        float(c_long),
+        float(c_lat),
+        np.asarray(normal_force, dtype=float),
+        float(eps),
         np.asarray(shape, dtype=float),
         np.zeros((2, nv)) if jac_head is None else np.ascontiguousarray(jac_head, dtype=float),
-        head_coulomb,
+        float(head_coulomb),
         np.zeros(nv) if joint_coulomb is None else np.asarray(joint_coulomb, dtype=float),
-        joint_eps,
+        float(joint_eps),
         offset,
         rate,
         power,
     )
+    force, torque = _implicit_friction_force(laws, mass_matrix, momentum_free, v, newton_steps)
     return force if servo is None else (force, torque)
 
 
@@ -588,14 +462,12 @@ def friction_problem(
     servo_command,
     servo_power,
     servo_gains,
-    joint_in_parent,
-    joint_in_child,
-    wheel_module,
-    wheel_offset,
-    wheel_toe,
+    chain,
 ):
-    """The implicit step's data at state x: wheel Jacobians along and across the wheels, joint damping,
-    the free momentum, the friction-law terms and the servos' backward-Euler offset, rate and power."""
+    """The implicit step at state x: its StepLaws (wheel Jacobians along and across the wheels, joint damping with a
+    failed joint's compliant stop, the friction-law terms, the servos' backward-Euler offset, rate and power), the
+    free momentum (the stop's known torque in it), that known torque, and the wheels' toe."""
+    joint_in_parent, joint_in_child, wheel_module, wheel_offset, wheel_toe = chain
     nw = wheel_module.shape[0]
     toe = wheel_toe * np.exp(1j * params[PER_WHEEL + nw : PER_WHEEL + 2 * nw])
     _, direction, jacobian = wheel_kinematics_kernel(
@@ -623,20 +495,29 @@ def friction_problem(
     servo_offset[3:] = servo_command + kd * v[3:]
     servo_rate[3:] = kd + dt * kp
     power[3:] = servo_power
-    return (
+    spring, stop_rate = compliant_stop(x, params, dt)
+    laws = StepLaws(
         jac_long,
         jac_lat,
-        joint_damping,
-        mass_matrix @ v + dt * other_force,
+        np.array([jacobian_span(jac_long, jac_lat, w) for w in range(nw)]),
+        mass_matrix + dt * np.diag(joint_damping + stop_rate),
+        dt,
+        params[MU_LONG],
+        params[MU_LAT],
+        params[C_LONG],
+        params[C_LAT],
         params[PER_WHEEL : PER_WHEEL + nw],
+        params[EPS],
+        params[SHAPE],
         jac_head,
         params[HEAD_MU] * params[HEAD_NORMAL],
         joint_coulomb,
+        JOINT_EPS_RAD_S,
         servo_offset,
         servo_rate,
         power,
-        toe,
     )
+    return laws, mass_matrix @ v + dt * other_force + dt * spring, spring, toe
 
 
 @jit
@@ -650,65 +531,12 @@ def friction_step(
     servo_command,
     servo_power,
     servo_gains,
-    joint_in_parent,
-    joint_in_child,
-    wheel_module,
-    wheel_offset,
-    wheel_toe,
+    chain,
 ):
-    (
-        jac_long,
-        jac_lat,
-        joint_damping,
-        momentum_free,
-        normal,
-        jac_head,
-        head_coulomb,
-        joint_coulomb,
-        servo_offset,
-        servo_rate,
-        power,
-        _,
-    ) = friction_problem(
-        x,
-        other_force,
-        mass_matrix,
-        dt,
-        params,
-        servo_command,
-        servo_power,
-        servo_gains,
-        joint_in_parent,
-        joint_in_child,
-        wheel_module,
-        wheel_offset,
-        wheel_toe,
+    laws, momentum_free, spring, _ = friction_problem(
+        x, other_force, mass_matrix, dt, params, servo_command, servo_power, servo_gains, chain
     )
-    spring, stop_rate = compliant_stop(x, params, dt)
-    force, servo = _implicit_friction_force(
-        jac_long,
-        jac_lat,
-        joint_damping + stop_rate,
-        mass_matrix,
-        momentum_free + dt * spring,
-        x[x.shape[0] // 2 :],
-        dt,
-        params[MU_LONG],
-        params[MU_LAT],
-        params[C_LONG],
-        params[C_LAT],
-        normal,
-        params[EPS],
-        newton_steps,
-        params[SHAPE],
-        jac_head,
-        head_coulomb,
-        joint_coulomb,
-        JOINT_EPS_RAD_S,
-        servo_offset,
-        servo_rate,
-        power,
-    )
+    force, servo = _implicit_friction_force(laws, mass_matrix, momentum_free, x[x.shape[0] // 2 :], newton_steps)
     return force + spring, servo  # the solve's force leaves out the spring it was given as known
 
 
@@ -852,7 +680,7 @@ class FrictionForces(LeafSystem):
             command_port.Eval(context),
             power_port.Eval(context),
             self._servo_gains,
-            *self._geometry,
+            self._geometry,
         )
         step = value.get_mutable_value()
         step[: len(other)] = friction + extra

@@ -86,7 +86,7 @@ def test_friction_tangent_matches_central_differences_of_the_solve():
 
     def v_plus(x, p, u):
         M, bias, _ = chain_terms(x, mass, inertia, com, jp, jc, 0j)
-        force, servo = fr.friction_step(x, -bias, M, dt, p, 50, u, power, gains, *geometry.arrays)
+        force, servo = fr.friction_step(x, -bias, M, dt, p, 50, u, power, gains, geometry.arrays)
         return np.linalg.solve(M, M @ x[16:] + dt * (-bias + force + servo))
 
     x = run.state[40]
@@ -104,7 +104,7 @@ def test_friction_tangent_matches_central_differences_of_the_solve():
     M, bias, _ = chain_terms(x, mass, inertia, com, jp, jc, 0j)
     mw, dbias, _ = chain_tangent(x, dx, np.tile(base - x[16:], (count, 1)), mass, inertia, com, jp, jc, 0j)
     tangent = friction_tangent(
-        x, dx, dparams, dcommand, -dbias, mw, base, M, -bias, dt, params, command, power, gains, *geometry.arrays
+        x, dx, dparams, dcommand, -dbias, mw, base, M, -bias, dt, params, command, power, gains, geometry.arrays
     )
     h = 1e-5
     for d in range(count):

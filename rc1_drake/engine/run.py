@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..kinematics import jit
-from .step import plant_step
+from .step import PlantTerms, plant_step
 from .tangent import step_tangent
 
 RUNNING, CROSSED, CIRCLING, NOT_FINITE = 0, 1, 2, 3
@@ -124,19 +124,7 @@ def _sensitivity_step(
     servo_gains,
     gains,
     heading,
-    mass,
-    yaw_inertia,
-    com,
-    gravity_xy,
-    in_plane,
-    lower,
-    upper,
-    locked,
-    joint_in_parent,
-    joint_in_child,
-    wheel_module,
-    wheel_offset,
-    wheel_toe,
+    plant,
 ):
     """Carry the sensitivities through one step (tangent.step_tangent), the PID's command and integrators, and
     the heading controller (the serpenoid's and the replay reference's time terms do not depend on parameters)."""
@@ -162,19 +150,7 @@ def _sensitivity_step(
         command,
         power,
         servo_gains,
-        mass,
-        yaw_inertia,
-        com,
-        gravity_xy,
-        in_plane,
-        lower,
-        upper,
-        locked,
-        joint_in_parent,
-        joint_in_child,
-        wheel_module,
-        wheel_offset,
-        wheel_toe,
+        plant,
     )
     kp_n, ki_n = _heading_gain(x_next, heading, z_heading)
     for d in range(num):
@@ -218,11 +194,7 @@ def advance_run(
     com,
     lower,
     upper,
-    joint_in_parent,
-    joint_in_child,
-    wheel_module,
-    wheel_offset,
-    wheel_toe,
+    chain,
     sens,
     sens_z,
     sens_zh,
@@ -244,6 +216,7 @@ def advance_run(
     nq = x.shape[0] // 2
     gravity_xy = model[0] + 1j * model[1]
     in_plane = model[2] != 0.0
+    plant = PlantTerms(mass, yaw_inertia, com, gravity_xy, in_plane, lower, upper, locked, chain)
     servo_gains = np.array([gains[0], gains[2]])
     for k in range(k0, k1):
         t = k * dt if k > k0 or np.isnan(t_first) else t_first
@@ -257,19 +230,7 @@ def advance_run(
             power,
             servo_gains,
             extra_force,
-            mass,
-            yaw_inertia,
-            com,
-            gravity_xy,
-            in_plane,
-            lower,
-            upper,
-            locked,
-            joint_in_parent,
-            joint_in_child,
-            wheel_module,
-            wheel_offset,
-            wheel_toe,
+            plant,
         )
         while log_next[0] < log_steps.shape[0] and log_steps[log_next[0]] == k:
             row = log_next[0]
@@ -290,19 +251,7 @@ def advance_run(
                     power,
                     servo_gains,
                     extra_force,
-                    mass,
-                    yaw_inertia,
-                    com,
-                    gravity_xy,
-                    in_plane,
-                    lower,
-                    upper,
-                    locked,
-                    joint_in_parent,
-                    joint_in_child,
-                    wheel_module,
-                    wheel_offset,
-                    wheel_toe,
+                    plant,
                 )[1]
             log_next[0] += 1
         last_torque[:] = torque
@@ -327,19 +276,7 @@ def advance_run(
                 servo_gains,
                 gains,
                 heading,
-                mass,
-                yaw_inertia,
-                com,
-                gravity_xy,
-                in_plane,
-                lower,
-                upper,
-                locked,
-                joint_in_parent,
-                joint_in_child,
-                wheel_module,
-                wheel_offset,
-                wheel_toe,
+                plant,
             )
         theta, theta_dot, error = _command(t, x_next, source, gait, heading, z_heading, breaks, values, rates, segment)
         z_pid += dt * (_servo_target(gains, theta, theta_dot, lower, upper) - x_next[3:nq])

@@ -260,7 +260,7 @@ class _CompiledRun:
             numbers.com,
             numbers.lower_limit,
             numbers.upper_limit,
-            *numbers.geometry.arrays,
+            numbers.geometry.arrays,
         )
 
     def advance_to(self, k1: int, k0: int) -> tuple:

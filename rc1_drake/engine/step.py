@@ -18,6 +18,8 @@ A (v - v*) = sum_i J_i^T gamma_i(J_i v), here exactly, by active-set Newton.
 
 from __future__ import annotations
 
+import collections
+
 import numpy as np
 
 from ..friction import FrictionForces, friction_step, spd_solve
@@ -106,6 +108,14 @@ def _limit_solve(q, v, v_star, A, dt, lower, upper, locked):
     return out
 
 
+# The chain's numbers a step takes (a run builds them once; the failure switch edits `locked` in place): module
+# masses, yaw inertias and centres of mass, gravity's floor component and whether it acts in the plane, the joint
+# limits, the locked joints, and the chain's geometry (kinematics.ChainGeometry.arrays).
+PlantTerms = collections.namedtuple(
+    "PlantTerms", ["mass", "yaw_inertia", "com", "gravity_xy", "gravity_in_plane", "lower", "upper", "locked", "chain"]
+)
+
+
 @jit
 def plant_step(
     x,
@@ -115,22 +125,12 @@ def plant_step(
     servo_power,
     servo_gains,
     extra_force,
-    mass,
-    yaw_inertia,
-    com,
-    gravity_xy,
-    gravity_in_plane,
-    lower,
-    upper,
-    locked,
-    joint_in_parent,
-    joint_in_child,
-    wheel_module,
-    wheel_offset,
-    wheel_toe,
+    plant,
 ):
     """(x+, servo torque (13,), v*, the force that gives the friction solve's v+ = v + dt M^-1 force) of one
     Diagram step from state x (module docstring)."""
+    mass, yaw_inertia, com, gravity_xy, gravity_in_plane, lower, upper, locked, chain = plant
+    joint_in_parent, joint_in_child, _, _, _ = chain
     nv = x.shape[0] // 2
     M, bias, gravity = chain_terms(x, mass, yaw_inertia, com, joint_in_parent, joint_in_child, gravity_xy)
     other = -bias
@@ -146,11 +146,7 @@ def plant_step(
         servo_command,
         servo_power,
         servo_gains,
-        joint_in_parent,
-        joint_in_child,
-        wheel_module,
-        wheel_offset,
-        wheel_toe,
+        chain,
     )
     tau = -bias + gravity + friction + extra_force  # the plant applies its gravity field itself
     tau[3:] += servo[3:]

@@ -20,7 +20,6 @@ from ..friction import (
     C_JOINT,
     C_LAT,
     C_LONG,
-    EPS,
     FAILED,
     FREE,
     HEAD_MU,
@@ -36,7 +35,6 @@ from ..friction import (
     cholesky_solve,
     coulomb_law,
     friction_problem,
-    jacobian_span,
     spd_solve,
 )
 from ..kinematics import jit
@@ -193,11 +191,7 @@ def friction_tangent(
     servo_command,
     servo_power,
     servo_gains,
-    joint_in_parent,
-    joint_in_child,
-    wheel_module,
-    wheel_offset,
-    wheel_toe,
+    chain,
 ):
     """The friction solve's velocity v+ (friction.friction_step) differentiated along P directions: the state
     dx (P, 32), the parameter vector dparams (P, len(params)), the servo command dcommand (P, 13) and the other
@@ -205,64 +199,16 @@ def friction_tangent(
     the step's residual R(v+) = M~ v+ - M v - dt other - dt F(v+) = 0: dv+ = -K^-1 dR, with K the Newton
     matrix at v+ (friction.assemble_step's exact tangent: the solve's own clips a falling Stribeck law) and dR the
     residual's change at fixed v+."""
+    joint_in_parent, joint_in_child, wheel_module, wheel_offset, wheel_toe = chain
     nv = x.shape[0] // 2
     nw = wheel_module.shape[0]
-    (
-        jac_long,
-        jac_lat,
-        joint_damping,
-        _,
-        normal,
-        jac_head,
-        head_coulomb,
-        joint_coulomb,
-        servo_offset,
-        servo_rate,
-        power,
-        toe,
-    ) = friction_problem(
-        x,
-        other_force,
-        mass_matrix,
-        dt,
-        params,
-        servo_command,
-        servo_power,
-        servo_gains,
-        joint_in_parent,
-        joint_in_child,
-        wheel_module,
-        wheel_offset,
-        wheel_toe,
+    laws, _, _, toe = friction_problem(
+        x, other_force, mass_matrix, dt, params, servo_command, servo_power, servo_gains, chain
     )
-    mass_damped = mass_matrix + dt * np.diag(joint_damping)
-    spans = np.array([jacobian_span(jac_long, jac_lat, w) for w in range(nw)])
-    eps, shape = params[EPS], params[SHAPE]
-    mu_long, mu_lat, c_long, c_lat = params[MU_LONG], params[MU_LAT], params[C_LONG], params[C_LAT]
-    _, K, linear = assemble_step(
-        v_plus,
-        True,
-        jac_long,
-        jac_lat,
-        spans,
-        mass_damped,
-        dt,
-        mu_long,
-        mu_lat,
-        c_long,
-        c_lat,
-        normal,
-        eps,
-        shape,
-        jac_head,
-        head_coulomb,
-        joint_coulomb,
-        JOINT_EPS_RAD_S,
-        servo_offset,
-        servo_rate,
-        power,
-        True,
-    )
+    _, K, linear = assemble_step(v_plus, True, laws, True)
+    jac_long, jac_lat, spans, normal, eps, shape = (laws.jac_long, laws.jac_lat, laws.spans, laws.normal_force,
+                                                    laws.eps, laws.shape)  # fmt: skip
+    mu_long, mu_lat, c_long, c_lat = laws.mu_long, laws.mu_lat, laws.c_long, laws.c_lat
     low = cholesky(K)  # the exact tangent may lose definiteness where a Stribeck law falls: LU then
     local, dlocal = wheel_local_tangent(x, dx, joint_in_parent, joint_in_child, wheel_module, wheel_offset, toe)
     free = params[FAILED] == FREE
@@ -340,24 +286,14 @@ def step_tangent(
     servo_command,
     servo_power,
     servo_gains,
-    mass,
-    yaw_inertia,
-    com,
-    gravity_xy,
-    in_plane,
-    lower,
-    upper,
-    locked,
-    joint_in_parent,
-    joint_in_child,
-    wheel_module,
-    wheel_offset,
-    wheel_toe,
+    plant,
 ):
     """d x_{k+1} (P, 32) of step.py's plant_step along state directions S (P, 32), parameter directions dparams,
     gravity's floor components dgravity (P, 2) and command directions dcommand, given the step's forces and
     velocities: the friction solve's v+ = v + dt M^-1 force_plus, v* (the free motion) and v_new (after locked
     joints and limits). Each stage is differentiated as it is computed (step.py)."""
+    mass, yaw_inertia, com, gravity_xy, in_plane, lower, upper, locked, chain = plant
+    joint_in_parent, joint_in_child, wheel_module, wheel_offset, wheel_toe = chain
     nv = x.shape[0] // 2
     num = S.shape[0]
     v = x[nv:]
@@ -388,11 +324,7 @@ def step_tangent(
         servo_command,
         servo_power,
         servo_gains,
-        joint_in_parent,
-        joint_in_child,
-        wheel_module,
-        wheel_offset,
-        wheel_toe,
+        chain,
     )
     # Locked joints and the limits' active set (step._limit_solve): (A_r + D) v_r = (A v*)_r + h, with D = 1/R
     # and h = sign v_hat / R on the active constraints.
