@@ -1,7 +1,8 @@
 """How often a diagnosis is right on the paper's design (issue 42): a confusion table over seeded campaigns.
 
     python benchmarks/paper_rates.py [--seeds 100-105] [--cells CELL,...] [--trials-per-case 2] [--workers 2]
-                                     [--out benchmarks/out/paper_rates] [--markdown] [--table-only]
+                                     [--variant default|keep-replay-error] [--out benchmarks/out/paper_rates]
+                                     [--markdown] [--table-only]
 
 Every campaign has the paper's design (section 4, Table 2): `--trials-per-case` trials each of no failure, J7, J13
 and J7 with the bias that straightens it (synthesize.PAPER_DESIGN's -0.9 deg), stopped at the 3.18 m line (about
@@ -20,7 +21,8 @@ intervals' coverage of the truth where a hidden effect was accepted. The thresho
 chosen on other seeds of another design (benchmarks/calibrate.py, seeds 0-5): the seeds here, from 100, chose
 nothing. Rows stream to OUT/rows.jsonl, seed by seed (every cell of a seed before the next seed): a rerun resumes,
 and the table covers whatever seeds are complete or partial. --markdown writes it into docs/diagnosis.md and its
-summary line into the README.
+summary line into the README. `--variant` diagnoses the same campaigns with a cheaper configuration (VARIANTS) and
+prints it against the default campaign by campaign: same outcome, same accepted effects, replays and minutes.
 """
 
 import argparse
@@ -43,6 +45,8 @@ from rc1_drake.synthesize import PAPER_DESIGN, Case, synthesize_campaign
 PAGE, BLOCK, WRITER = REPO_ROOT / "docs" / "diagnosis.md", "paper-rates-table", "benchmarks/paper_rates.py --markdown"
 README, SUMMARY = REPO_ROOT / "README.md", "paper-rates-summary"
 J7_BIAS_DEG = next(c.bias_deg for c in PAPER_DESIGN if c.bias_deg)
+# Cheaper configurations of the diagnosis, judged against the default on the same campaigns (issue 42 item 2).
+VARIANTS = {"default": {}, "keep-replay-error": {"remeasure_replay_error": False}}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -139,11 +143,13 @@ def one(cell: Cell, seed: int, args) -> dict:
         workers=args.workers,
         probe_study=False,
         start_rates="fit",
-        checkpoint=args.out / "checkpoints" / folder.name,
+        checkpoint=args.out / "checkpoints" / f"{folder.name}-{args.variant}",
+        **VARIANTS[args.variant],
     )
     return {
         "cell": cell.label,
         "seed": seed,
+        "variant": args.variant,
         "trials_per_case": args.trials_per_case,
         "verdict": str(result.verdict),
         "accepted": result.accepted,
@@ -191,12 +197,32 @@ def table(rows: list, cells: list) -> tuple:
     return "\n".join(lines), summary
 
 
+def paired(rows: list, variant: str) -> str:
+    """The variant against the default on the campaigns both diagnosed."""
+    default = {(r["cell"], r["seed"]): r for r in rows if r.get("variant", "default") == "default"}
+    pairs = [(default[k], r) for r in rows if r.get("variant") == variant and (k := (r["cell"], r["seed"])) in default]
+    if not pairs:
+        return f"{variant}: no campaign diagnosed by both yet"
+    same = sum(a["outcome"] == b["outcome"] for a, b in pairs)
+    accepted = sum(sorted(a["accepted"]) == sorted(b["accepted"]) for a, b in pairs)
+    replays = [sum(r["simulations"] for r in side) / len(pairs) for side in zip(*pairs, strict=True)]
+    minutes = [sum(r["wall_s"] for r in side) / len(pairs) / 60 for side in zip(*pairs, strict=True)]
+    differ = ", ".join(f"{a['cell']} seed {a['seed']}: {a['outcome']} -> {b['outcome']}" for a, b in pairs
+                       if a["outcome"] != b["outcome"])  # fmt: skip
+    return (
+        f"{variant} against the default on {len(pairs)} campaigns: same outcome {same}, same accepted effects "
+        f"{accepted}; replays {replays[0]:.0f} -> {replays[1]:.0f}, minutes {minutes[0]:.1f} -> {minutes[1]:.1f}"
+        + (f"; differ: {differ}" if differ else "")
+    )
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", default="100-105")
     parser.add_argument("--cells", help="comma-separated cell labels (default: all, in CELLS' order)")
     parser.add_argument("--trials-per-case", type=int, default=2)
     parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--variant", choices=list(VARIANTS), default="default")
     parser.add_argument("--out", type=Path, default=REPO_ROOT / "benchmarks" / "out" / "paper_rates")
     parser.add_argument("--markdown", action="store_true", help="write the table into docs/diagnosis.md")
     parser.add_argument("--table-only", action="store_true", help="print (and write) the table of the rows so far")
@@ -215,7 +241,7 @@ def main():
     path = args.out / "rows.jsonl"
     rows = [json.loads(line) for line in path.read_text().splitlines()] if path.exists() else []
     rows = [r for r in rows if r["trials_per_case"] == args.trials_per_case]
-    done = {(r["cell"], r["seed"]) for r in rows}
+    done = {(r["cell"], r["seed"]) for r in rows if r.get("variant", "default") == args.variant}
     jobs = [(c, s) for s in parse_seeds(args.seeds) for c in cells if (c.label, s) not in done]
     for n, (cell, seed) in enumerate([] if args.table_only else jobs):
         row = one(cell, seed, args)
@@ -224,6 +250,9 @@ def main():
             f.write(json.dumps(row) + "\n")
         print(f"[{n + 1}/{len(jobs)}] {cell.label} seed {seed}: {row['verdict']}, accepted {row['accepted']} -> "
               f"{row['outcome']} ({row['wall_s'] / 60:.1f} min, {row['simulations']} replays)", flush=True)  # fmt: skip
+    if args.variant != "default":
+        print(paired(rows, args.variant))
+    rows = [r for r in rows if r.get("variant", "default") == "default"]
     body, summary = table(rows, cells)
     used = sorted({r["seed"] for r in rows})
     head = (

@@ -446,11 +446,26 @@ def test_a_visible_hidden_effect_is_ranked_first_accepted_and_recovered(
         after, before = result.waterfall[-1][eq6], result.waterfall[-2][eq6]
         assert after - floor <= 0.5 * (before - floor), (eq6, before, after, floor)  # the error above the floor halved
     # The report leads with the answer: the verdict, what was added with its interval, the error before and after.
-    verdict, added, error, left = result.format().splitlines()[:4]
+    verdict, rate, added, error, left = result.format().splitlines()[:5]
     assert verdict.startswith("verdict: effect_found: accepted " + effect)
+    assert rate.startswith(("measured on the paper's design", "measured rate of effect_found on the paper's design"))
     assert added.startswith(f"added: {key}={final:.3g}+-") and added.endswith("(95%)")
     assert error.startswith(f"mean Eq. 6 error: {result.waterfall[0]['mean_eq6_error_pct']:.2f}% (start")
     assert left.startswith("trials still unexplained: ")
+
+
+@pytest.mark.slow
+def test_keeping_the_replay_error_of_the_start_saves_its_bootstraps_and_finds_the_same_toe(tmp_path):
+    """The cheaper variant (remeasure_replay_error=False, judged at scale by benchmarks/paper_rates.py --variant):
+    the same toe accepted, its interval holding the truth, without the bootstraps at the accepted and polished
+    models (each the trials' noise-free twins and their draws)."""
+    campaign = _campaign(tmp_path, {"wheel_toe_deg": 1.5})
+    options = dict(candidates=["wheel_toe", "head_drag"], input_noise_samples=2, max_rounds=1)
+    full, kept = _diagnose(campaign, **options), _diagnose(campaign, remeasure_replay_error=False, **options)
+    assert full.accepted == kept.accepted == ["wheel_toe"]
+    value, se = kept.final_coordinates["wheel_toe_deg"]
+    assert abs(value - 1.5) < Z95 * se
+    assert kept.simulations <= full.simulations - len(campaign.trials) * (2 + 1)  # one bootstrap at least
 
 
 # On these short trials a hidden head drag is explained about as well by a tilt or a longitudinal asymmetry,

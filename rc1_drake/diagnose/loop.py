@@ -47,6 +47,7 @@ def diagnose(
     thresholds: Thresholds = THRESHOLDS,
     checkpoint=None,
     on_round=None,
+    remeasure_replay_error=True,
 ) -> Diagnosis:
     """The loop (the package's docstring) on `campaign` (its `trials`, all by default), from the model (`friction`,
     `effects`); `candidates` are effect names or groups (effects.candidate_names; by default the physical effects,
@@ -56,7 +57,9 @@ def diagnose(
     START_FIT_S, for data whose start follows no known convention. `checkpoint`: a folder where every replay's result
     is kept as it arrives; a diagnosis interrupted and run again with it resumes where it stopped. `on_round(friction,
     effects, accepted)`: called with the model after each round that accepted an effect (so that a caller keeps it
-    whatever follows)."""
+    whatever follows). `remeasure_replay_error`: measure the replay's own error again at each accepted and polished
+    model (docs/diagnosis.md), or keep the start's, a variant that saves those bootstraps (benchmarks/paper_rates.py
+    --variant judges it campaign by campaign)."""
     started = time.perf_counter()
     if start_rates not in START_MODES:
         raise ValueError(f"start_rates must be one of {START_MODES}, got {start_rates!r}")
@@ -76,6 +79,7 @@ def diagnose(
             starts=fit_starts,
         )
         search = _Search.begin(lin, evaluator, chosen, replayed, held, input_noise_samples, thresholds)
+        search.remeasure = remeasure_replay_error
         search.stop_reason = f"{max_rounds} rounds"
         for index in range(max_rounds):
             if not search.round(index):
@@ -126,6 +130,7 @@ class _Search:
     accepted: list[str] = dataclasses.field(default_factory=list)
     rounds: list[Round] = dataclasses.field(default_factory=list)
     stop_reason: str = ""
+    remeasure: bool = True  # the replay's own error measured again at each accepted and polished model
 
     @classmethod
     def begin(cls, lin, evaluator, trials, replayed, held, samples, thresholds) -> "_Search":
@@ -274,9 +279,10 @@ class _Search:
         # the refit's step; that step is small, and the next round refits from there).
         lin = moved(at, cand_fit.names, cand_fit.values, self.evaluator)
         # The replay's own error depends on the model: measured again at the accepted one (docs/diagnosis.md).
-        lin = with_replay_error(lin, self.evaluator, self.samples)
+        if self.remeasure:
+            lin = with_replay_error(lin, self.evaluator, self.samples)
         accepted_at = {n: lin.coordinate(n).value for n in c.coordinates}
-        lin, steps = polish(lin, self.model_names, c.name, self.evaluator, self.samples)
+        lin, steps = polish(lin, self.model_names, c.name, self.evaluator, self.samples if self.remeasure else 0)
         here = fit(lin, self.model_names)  # the accepted effect's interval, the replay's error measured there
         self.rounds[-1].polished = (
             f"{steps} Gauss-Newton step(s) from " + ", ".join(f"{n}={v:.3g}" for n, v in accepted_at.items())
