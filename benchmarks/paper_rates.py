@@ -12,7 +12,8 @@ REFERENCE) and at half of it; two at once; a sensor fault (joint 9's potentiomet
 the joint limit, so the loader puts that potentiometer among the candidates, as for a user); and two mechanisms
 outside the candidates (the `study` effects: a failed joint's compliant stop, a cantilevered head). Campaigns are
 made by this model and by reference.py (another model: kinematic joints, its own limits, the head at rest; it can
-hide the toe and the sensor faults). Each is diagnosed as `rc1 diagnose` does by default (the physical effects and
+hide the toe and the sensor faults), some recorded as another lab might (SAMPLING: 50 Hz, 0.2 deg of potentiometer
+noise, starts spread wider). Each is diagnosed as `rc1 diagnose` does by default (the physical effects and
 the potentiometers that pass their limits; the start rates fitted, as for data from another model), friction free.
 
 Scored: right (effect_found with exactly the hidden library effects; no_missing_effect with nothing hidden; nothing
@@ -40,7 +41,7 @@ from rc1_drake.diagnose import diagnose
 from rc1_drake.diagnose.verdict import RATES_FILE, verdict_rates
 from rc1_drake.effects import LIBRARY, effect_values
 from rc1_drake.measurements import load_campaign
-from rc1_drake.synthesize import PAPER_DESIGN, Case, synthesize_campaign
+from rc1_drake.synthesize import PAPER_DESIGN, Case, Noise, Variation, synthesize_campaign
 
 PAGE, BLOCK, WRITER = REPO_ROOT / "docs" / "diagnosis.md", "paper-rates-table", "benchmarks/paper_rates.py --markdown"
 README, SUMMARY = REPO_ROOT / "README.md", "paper-rates-summary"
@@ -55,12 +56,22 @@ class Cell:
     truth_model: str  # drake (this model) or reference
     hidden: dict  # effect parameter key -> value
     expected: tuple  # the library effects a right diagnosis accepts; () for nothing, None: outside the candidates
+    sampling: str = "100 Hz"  # a key of SAMPLING: how the campaign is recorded
 
 
 def _library(effect: str, scale: float, truth_model: str = "drake") -> Cell:
     key, value = diagnosis.REFERENCE[effect]
     label = f"{effect} x{scale:g}" + ("" if truth_model == "drake" else f" ({truth_model})")
     return Cell(label, truth_model, {key: value * scale}, (effect,))
+
+
+# Data like another lab's (issue 42): 50 Hz, 0.2 deg potentiometer noise, the start phase within about +-15 deg and
+# the heading within +-2 deg (two standard deviations); where the replay's own miss, on another model's motion, left
+# about a degree of wheel toe.
+ROUGH = dict(
+    sample_period_s=0.02, noise=Noise(potentiometer_deg=0.2), variation=Variation(phase_deg=7.5, heading_deg=1.0)
+)
+SAMPLING = {"100 Hz": {}, "rough 50 Hz": ROUGH, "rough 100 Hz": {**ROUGH, "sample_period_s": 0.01}}
 
 
 PHYSICAL = [
@@ -77,6 +88,11 @@ PHYSICAL = [
 CELLS = [
     Cell("none", "drake", {}, ()),
     Cell("none (reference)", "reference", {}, ()),
+    Cell("none (reference, rough 50 Hz)", "reference", {}, (), "rough 50 Hz"),
+    Cell("none (reference, rough 100 Hz)", "reference", {}, (), "rough 100 Hz"),
+    dataclasses.replace(
+        _library("wheel_toe", 1.0, "reference"), label="wheel_toe x1 (reference, rough 50 Hz)", sampling="rough 50 Hz"
+    ),  # fmt: skip
     _library("wheel_toe", 1.0, "reference"),
     *(_library(e, 1.0) for e in PHYSICAL),
     _library("potentiometer_offset_j9", 1.0),
@@ -135,7 +151,7 @@ def one(cell: Cell, seed: int, args) -> dict:
     folder = args.out / "campaigns" / f"{cell.label.replace(' ', '_')}-{seed}"
     if not folder.is_dir():
         synthesize_campaign(folder, design=design(args.trials_per_case), effects=cell.hidden, seed=seed,
-                            truth_model=cell.truth_model, stop=Stop())  # fmt: skip
+                            truth_model=cell.truth_model, stop=Stop(), **SAMPLING[cell.sampling])  # fmt: skip
     started = time.perf_counter()
     result = diagnose(
         load_campaign(folder),
