@@ -7,7 +7,7 @@
 Every campaign has the paper's design (section 4, Table 2): `--trials-per-case` trials each of no failure, J7, J13
 and J7 with the bias that straightens it (synthesize.PAPER_DESIGN's -0.9 deg), stopped at the 3.18 m line (about
 10 s), sensor noise and start spread as `rc1 synthesize` makes them, the paper's friction. A cell hides something:
-nothing; each physical effect of the default candidates at its reference strength (benchmarks/diagnosis.py's
+nothing (with the paper's friction, or far from it); each physical effect of the default candidates at its reference strength (benchmarks/diagnosis.py's
 REFERENCE) and at half of it; two at once; a sensor fault (joint 9's potentiometer 2 deg high: its readings pass
 the joint limit, so the loader puts that potentiometer among the candidates, as for a user); and two mechanisms
 outside the candidates (the `study` effects: a failed joint's compliant stop, a cantilevered head). Campaigns are
@@ -57,6 +57,7 @@ class Cell:
     hidden: dict  # effect parameter key -> value
     expected: tuple  # the library effects a right diagnosis accepts; () for nothing, None: outside the candidates
     sampling: str = "100 Hz"  # a key of SAMPLING: how the campaign is recorded
+    friction: tuple = ()  # the truth's friction where it is not the paper's: (name, value) pairs
 
 
 def _library(effect: str, scale: float, truth_model: str = "drake") -> Cell:
@@ -88,6 +89,8 @@ PHYSICAL = [
 CELLS = [
     Cell("none", "drake", {}, ()),
     Cell("none (reference)", "reference", {}, ()),
+    # Friction far from the paper's (issue 40's campaign): the diagnosis starts from the paper's and must refit it.
+    Cell("none, far friction", "drake", {}, (), friction=(("mu_lat", 0.6), ("c_lat", 1.5), ("c_joint", 0.09))),
     Cell("none (reference, rough 50 Hz)", "reference", {}, (), "rough 50 Hz"),
     Cell("none (reference, rough 100 Hz)", "reference", {}, (), "rough 100 Hz"),
     dataclasses.replace(
@@ -151,7 +154,8 @@ def one(cell: Cell, seed: int, args) -> dict:
     folder = args.out / "campaigns" / f"{cell.label.replace(' ', '_')}-{seed}"
     if not folder.is_dir():
         synthesize_campaign(folder, design=design(args.trials_per_case), effects=cell.hidden, seed=seed,
-                            truth_model=cell.truth_model, stop=Stop(), **SAMPLING[cell.sampling])  # fmt: skip
+                            truth_model=cell.truth_model, stop=Stop(), friction=Friction(**dict(cell.friction)),
+                            **SAMPLING[cell.sampling])  # fmt: skip
     started = time.perf_counter()
     result = diagnose(
         load_campaign(folder),
