@@ -5,16 +5,17 @@
                                      [--markdown] [--table-only]
 
 Every campaign has the paper's design (section 4, Table 2): `--trials-per-case` trials each of no failure, J7, J13
-and J7 with the bias that straightens it (synthesize.PAPER_DESIGN's -0.9 deg), stopped at the 3.18 m line (about
-10 s), sensor noise and start spread as `rc1 synthesize` makes them, the paper's friction. A cell hides something:
-nothing (with the paper's friction, or far from it); each physical effect of the default candidates at its reference strength (benchmarks/diagnosis.py's
-REFERENCE) and at half of it; two at once; a sensor fault (joint 9's potentiometer 2 deg high: its readings pass
-the joint limit, so the loader puts that potentiometer among the candidates, as for a user); and two mechanisms
-outside the candidates (the `study` effects: a failed joint's compliant stop, a cantilevered head). Campaigns are
-made by this model and by reference.py (another model: kinematic joints, its own limits, the head at rest; it can
-hide the toe and the sensor faults), some recorded as another lab might (SAMPLING: 50 Hz, 0.2 deg of potentiometer
-noise, starts spread wider). Each is diagnosed as `rc1 diagnose` does by default (the physical effects and
-the potentiometers that pass their limits; the start rates fitted, as for data from another model), friction free.
+and J7 with the bias that straightens it (synthesize.PAPER_DESIGN's -0.9 deg), stopped at the 3.18 m line (about 10
+s), sensor noise and start spread as `rc1 synthesize` makes them, the paper's friction. A cell hides something:
+nothing (with the paper's friction, or far from it); each physical effect of the default candidates at its reference
+strength (benchmarks/diagnosis.py's REFERENCE) and at half of it; two at once; a sensor fault (joint 9's
+potentiometer 2 deg high: its readings pass the joint limit, so the loader puts that potentiometer among the
+candidates, as for a user); and two mechanisms outside the candidates (the `study` effects: a failed joint's
+compliant stop, a cantilevered head). Campaigns are made by this model and by reference.py (another model: kinematic
+joints, its own limits, the head at rest; it can hide the toe and the sensor faults), some recorded as another lab
+might (SAMPLING: 50 Hz, 0.2 deg of potentiometer noise, starts spread wider). Each is diagnosed as `rc1 diagnose`
+does by default (the physical effects and the potentiometers that pass their limits; the start rates fitted, as for
+data from another model), friction free.
 
 Scored: right (effect_found with exactly the hidden library effects; no_missing_effect with nothing hidden; nothing
 accepted for an effect outside the candidates), a wrong effect accepted, ambiguous, unexplained, and the 95%
