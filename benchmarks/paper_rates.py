@@ -292,7 +292,8 @@ def main():
             "verdicts": verdict_rates([{**r, "hidden": kinds[r["cell"]]} for r in rows if r["cell"] in kinds]),
         }
         RATES_FILE.write_text(json.dumps(rates, indent=1) + "\n")
-        write_block(README, SUMMARY, WRITER, f"On the paper's design (`benchmarks/paper_rates.py`): {summary}.")
+        seeds = f"seeds {used[0]}-{used[-1]}" if used else "no seed yet"
+        write_block(README, SUMMARY, WRITER, f"On the paper's design (`benchmarks/paper_rates.py`, {seeds}): {summary}.")
 
 
 if __name__ == "__main__":
