@@ -293,7 +293,8 @@ def main():
         }
         RATES_FILE.write_text(json.dumps(rates, indent=1) + "\n")
         seeds = f"seeds {used[0]}-{used[-1]}" if used else "no seed yet"
-        write_block(README, SUMMARY, WRITER, f"On the paper's design (`benchmarks/paper_rates.py`, {seeds}): {summary}.")
+        line = f"On the paper's design (`benchmarks/paper_rates.py`, {seeds}): {summary}."
+        write_block(README, SUMMARY, WRITER, line)
 
 
 if __name__ == "__main__":
