@@ -28,6 +28,7 @@ prints it against the default campaign by campaign: same outcome, same accepted 
 """
 
 import argparse
+import collections
 import dataclasses
 import json
 import time
@@ -176,6 +177,7 @@ def one(cell: Cell, seed: int, args) -> dict:
         "accepted": result.accepted,
         "outcome": classify(str(result.verdict), result.accepted, cell.expected),
         "coverage": coverage(result, cell),
+        "unexplained_trials": sorted(result.unexplained_trials),
         "final_effects": result.effects,
         "simulations": result.simulations,
         "wall_s": time.perf_counter() - started,
@@ -186,8 +188,8 @@ def table(rows: list, cells: list) -> tuple:
     """(the markdown table, its one-line summary) over the rows of `cells`."""
     lines = [
         "| hidden | campaigns | right | wrong effect accepted | ambiguous | unexplained | nothing found | "
-        "95% interval holds the truth | mean min |",
-        "|---|---|---|---|---|---|---|---|---|",
+        "95% interval holds the truth | trials left unexplained | mean min |",
+        "|---|---|---|---|---|---|---|---|---|---|",
     ]
     totals = {"right": 0, "wrong": 0, "n": 0, "null_right": 0, "null_n": 0}
     for cell in cells:
@@ -201,9 +203,11 @@ def table(rows: list, cells: list) -> tuple:
         covered = [c for r in mine for c in r["coverage"]]
         cov = f"{sum(covered)}/{len(covered)}" if covered else "-"
         minutes = sum(r["wall_s"] for r in mine) / n / 60
+        left = collections.Counter(t.rsplit("_", 1)[0] for r in mine for t in r.get("unexplained_trials", []))
+        left_text = ", ".join(f"{case} {k}" for case, k in left.most_common(3)) or "-"
         lines.append(
             f"| {cell.label} | {n} | {count['right']} | {count['wrong']} | {count['ambiguous']} | "
-            f"{count['unexplained']} | {count['missed']} | {cov} | {minutes:.1f} |"
+            f"{count['unexplained']} | {count['missed']} | {cov} | {left_text} | {minutes:.1f} |"
         )
         totals["right"] += count["right"]
         totals["wrong"] += count["wrong"]
