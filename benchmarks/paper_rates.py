@@ -178,6 +178,8 @@ def one(cell: Cell, seed: int, args) -> dict:
         "outcome": classify(str(result.verdict), result.accepted, cell.expected),
         "coverage": coverage(result, cell),
         "unexplained_trials": sorted(result.unexplained_trials),
+        "ambiguous_between": list(result.rounds[-1].ambiguous) if result.rounds else [],
+        "partial": [r.partial for r in result.rounds if r.partial],
         "final_effects": result.effects,
         "simulations": result.simulations,
         "wall_s": time.perf_counter() - started,
