@@ -4,10 +4,10 @@
 
 Each setting is a named change of the paper's model or of scenarios/paper_findings.yaml's (SETTINGS: friction,
 effects, servo, failure instant, start phase, a bias); each runs the paper's cases (reproduce.paper_jobs: its start,
-its stop rule) on the compiled engine (an effect with a Python force, the tether, on the Drake engine) and is scored
-as `rc1 reproduce` scores them (reproduce.score_trial). It prints one row per setting and case: outcomes,
-direction, revolutions, circle diameter (metrics.circle_diameter over complete turns), final head y and time.
-Effect values are not validated against the library's bounds here: a screen may look past them (say so).
+its stop rule) on the compiled engine and is scored as `rc1 reproduce` scores them (reproduce.score_trial). It
+prints one row per setting and case: outcomes, direction, revolutions, circle diameter (metrics.circle_diameter over
+complete turns), final head y and time. Effect values are not validated against the library's bounds here: a screen
+may look past them (say so).
 """
 
 import argparse
@@ -90,7 +90,7 @@ SETTINGS = {
     "motor_line": _s(servo={"torque_limit_Nm": MOTOR_LINE_NM}),
     "deadband_+": _s(bias_deg=DEADBAND_HALF_DEG),
     "deadband_-": _s(bias_deg=-DEADBAND_HALF_DEG),
-    # RC1's power tether at the tail (effects.TailTether; runs on the Drake engine: some 20 s per 60 s run).
+    # RC1's power tether at the tail (effects.TailTether).
     "tether_0.5": _s(effects={"tail_tether_N": 0.5}),
     "tether_1": _s(effects={"tail_tether_N": 1.0}),
     "tether_2": _s(effects={"tail_tether_N": 2.0}),

@@ -53,6 +53,7 @@ class ModelSetup:
     stop_d: float = 0.0  # N m s/rad
     stop_onset_rad: float = 0.0
     head_on_wheel2: float = 0.0  # head weights carried by module 2's wheel (a cantilevered head)
+    tail_tether_N: float = 0.0  # a tether's Coulomb pull at the tail's end
     wheel_toe_rad: float = 0.0
     extra_forces: list[Callable] = dataclasses.field(default_factory=list)  # f(x) -> (16,) generalized force
 
@@ -247,43 +248,20 @@ class HeadCantilever(Effect):
         setup.head_on_wheel2 = values["head_on_wheel2"]
 
 
-TETHER_EPS_M_S = 0.05  # sgn() smoothing of the tether's drag: explicit, stable while dt T / (eps m_tail) < 2
-
-
-def tail_tether_force(x, geometry, tension_N: float, eps_m_s: float = TETHER_EPS_M_S) -> np.ndarray:
-    """The generalized force (nv,) of a tether dragged on the floor behind the tail: at the tail's rear end
-    (its front joint mirrored through its centre), a Coulomb drag -T u / sqrt(|u|^2 + eps^2) against that
-    point's velocity u."""
-    from .kinematics import wheel_kinematics_kernel
-
-    x = np.asarray(x, dtype=float)
-    jp, jc, *_ = geometry.arrays
-    tail = np.array([geometry.num_modules - 1])
-    _, _, jacobian = wheel_kinematics_kernel(x, jp, jc, tail, -jc[-1:], np.ones(1, dtype=np.complex128))
-    u = jacobian[0] @ x[x.shape[0] // 2 :]
-    force = -tension_N * u / math.sqrt(abs(u) ** 2 + eps_m_s**2)
-    return force.real * jacobian[0].real + force.imag * jacobian[0].imag
-
-
 class TailTether(Effect):
     """RC1 was powered through one tether at its tail (paper section 2): the cable lying on the floor behind it
     drags the tail's end with its sliding friction (its weight on the floor times its friction coefficient),
-    against the end's motion. An explicit Python force (tail_tether_force), so runs with it use the Drake engine;
-    outside the paper's model and the default candidates."""
+    against the end's motion: an isotropic Coulomb force of T newtons there, in the implicit friction solve (both
+    engines; friction.tail_end_jacobian). Outside the paper's model and the default candidates."""
 
     name = "tail_tether"
-    summary = "a cable dragged behind the tail: a Coulomb force T against its rear end's motion (Drake engine)"
+    summary = "a cable dragged behind the tail: a Coulomb force T against its end's motion"
     default_candidate = False
-    differentiable = False
+    differentiable = False  # the tangent model (engine/tangent.py) does not carry it
     parameters = (EffectParameter("tail_tether_N", 0.0, 2.0, probe=0.2),)
 
     def configure(self, setup, values):
-        tension = values["tail_tether_N"]
-        if tension > 0.0:
-            from .engine.dynamics import plant_numbers
-
-            geometry = plant_numbers().geometry
-            setup.extra_forces.append(lambda x: tail_tether_force(x, geometry, tension))
+        setup.tail_tether_N = values["tail_tether_N"]
 
 
 class StribeckFriction(Effect):

@@ -230,8 +230,9 @@ StepLaws = collections.namedtuple(
         "normal_force",  # (W,)
         "eps",  # the sgn() smoothing, m/s
         "shape",  # PAPER_SHAPE's layout: asymmetries, Stribeck ratio and speed
-        "jac_head",  # (2, nv) the velocity Jacobian of the head's centre, where head_coulomb (N) drags
-        "head_coulomb",
+        "jac_drag",  # (2P, nv) the velocity Jacobians of P points with an isotropic Coulomb drag: head, tail's end
+        "drag_coulomb",  # (P,) N: the head's skid (effects.HeadDrag), the tether's pull (effects.TailTether)
+        "drag_eps",  # (P,) their sgn() smoothing, m/s
         "joint_coulomb",  # (nv,) failed joints' dry friction, N m, its sign smoothed at joint_eps rad/s
         "joint_eps",
         "servo_offset",  # (nv,) the servos' backward-Euler torque clamp(offset - rate v+, +-power)
@@ -247,8 +248,8 @@ def assemble_step(v_next, tangent, laws, exact=False):
     mass_damped + dt * (rate of -f): its tangent (Newton) if `tangent`, else its secant (the start, which
     linearizes each Coulomb term through the origin); `exact`: the tangent unclipped (coulomb_law). Also returns
     which servos are not saturated."""
-    (jac_long, jac_lat, spans, mass_damped, dt, mu_long, mu_lat, c_long, c_lat, normal_force, eps, shape, jac_head,
-     head_coulomb, joint_coulomb, joint_eps, servo_offset, servo_rate, servo_power) = laws  # fmt: skip
+    (jac_long, jac_lat, spans, mass_damped, dt, mu_long, mu_lat, c_long, c_lat, normal_force, eps, shape, jac_drag,
+     drag_coulomb, drag_eps, joint_coulomb, joint_eps, servo_offset, servo_rate, servo_power) = laws  # fmt: skip
     n = v_next.shape[0]
     force = np.zeros(n)
     matrix = mass_damped.copy()
@@ -282,10 +283,12 @@ def assemble_step(v_next, tangent, laws, exact=False):
     for a in range(n):
         for b in range(a):
             matrix[b, a] = matrix[a, b] - mass_damped[a, b] + mass_damped[b, a]
-    if head_coulomb > 0.0:
-        f_head, secant, k_head = _isotropic(jac_head @ v_next, head_coulomb, eps)
-        force += jac_head.T @ f_head
-        matrix += dt * (jac_head.T @ k_head @ jac_head if tangent else secant * (jac_head.T @ jac_head))
+    for p in range(drag_coulomb.shape[0]):
+        if drag_coulomb[p] > 0.0:
+            jac = np.ascontiguousarray(jac_drag[2 * p : 2 * p + 2])
+            f_p, secant, k_p = _isotropic(jac @ v_next, drag_coulomb[p], drag_eps[p])
+            force += jac.T @ f_p
+            matrix += dt * (jac.T @ k_p @ jac if tangent else secant * (jac.T @ jac))
     return force, matrix, linear
 
 
@@ -385,7 +388,8 @@ def implicit_friction_force(
         float(eps),
         np.asarray(shape, dtype=float),
         np.zeros((2, nv)) if jac_head is None else np.ascontiguousarray(jac_head, dtype=float),
-        float(head_coulomb),
+        np.array([float(head_coulomb)]),
+        np.array([float(eps)]),
         np.zeros(nv) if joint_coulomb is None else np.asarray(joint_coulomb, dtype=float),
         float(joint_eps),
         offset,
@@ -404,8 +408,9 @@ def implicit_friction_force(
 # force, then per wheel its toe angle (rad, counter-clockwise, added to the SDF's wheel yaw).
 C_JOINT, MU_LAT, MU_LONG, C_LAT, C_LONG, EPS = range(6)
 SHAPE = slice(6, 10)
-HEAD_MU, HEAD_NORMAL, JOINT_COULOMB, PAYLOAD_KG, PAYLOAD_MODULE, STOP_K, STOP_D, STOP_ONSET = range(10, 18)
-SCALARS = 18
+HEAD_MU, HEAD_NORMAL, JOINT_COULOMB, PAYLOAD_KG, PAYLOAD_MODULE, STOP_K, STOP_D, STOP_ONSET, TETHER_N = range(10, 19)
+SCALARS = 19
+TETHER_EPS_M_S = 0.05  # the tether's sgn() smoothing: a cable's drag builds up over a few cm/s
 WORKING, FREE, LOCKED = 0.0, 1.0, 2.0
 LOCKED_DAMPING = 1e4  # N m s/rad: in the prediction only, a locked joint barely moves
 JOINT_EPS_RAD_S = 0.01  # sgn() smoothing of a failed joint's dry friction
@@ -432,6 +437,7 @@ def friction_parameters(*, friction: Friction, sgn_smoothing_m_s: float, setup, 
     params[JOINT_COULOMB] = setup.joint_coulomb_Nm
     params[PAYLOAD_KG], params[PAYLOAD_MODULE] = setup.payload_kg, setup.payload_module
     params[STOP_K], params[STOP_D], params[STOP_ONSET] = setup.stop_k, setup.stop_d, setup.stop_onset_rad
+    params[TETHER_N] = setup.tail_tether_N
     weight = np.array(geometry.module_mass, dtype=float)
     if setup.payload_module:
         weight[setup.payload_module - 1] += setup.payload_kg
@@ -450,6 +456,21 @@ def normal_slice(num_wheels: int) -> slice:
 
 def toe_slice(num_wheels: int) -> slice:
     return slice(PER_WHEEL + num_wheels, PER_WHEEL + 2 * num_wheels)
+
+
+@jit
+def tail_end_jacobian(x, chain):
+    """(2, nv): the world x and y velocity of the tail's end (its front joint mirrored through its centre) per unit
+    rate of each coordinate, where a tether pulls (effects.TailTether)."""
+    joint_in_parent, joint_in_child, _, _, _ = chain
+    tail = np.array([joint_in_parent.shape[0]])
+    _, _, jacobian = wheel_kinematics_kernel(
+        x, joint_in_parent, joint_in_child, tail, -joint_in_child[-1:], np.ones(1, dtype=np.complex128)
+    )
+    out = np.empty((2, jacobian.shape[1]))
+    out[0] = jacobian[0].real
+    out[1] = jacobian[0].imag
+    return out
 
 
 @jit
@@ -483,9 +504,11 @@ def friction_problem(
     state = params[FAILED]
     joint_damping[3:] = np.where(state == FREE, params[C_JOINT], np.where(state == LOCKED, LOCKED_DAMPING, 0.0))
     joint_coulomb[3:] = np.where(state == FREE, params[JOINT_COULOMB], 0.0)
-    jac_head = np.zeros((2, nv))  # the head centre's velocity: the planar joint's x, y rates
-    jac_head[0, 0] = 1.0
-    jac_head[1, 1] = 1.0
+    jac_drag = np.zeros((4, nv))  # the head centre's velocity: the planar joint's x, y rates; then the tail's end
+    jac_drag[0, 0] = 1.0
+    jac_drag[1, 1] = 1.0
+    if params[TETHER_N] > 0.0:
+        jac_drag[2:] = tail_end_jacobian(x, chain)
     # The servo PID's command u_n = Kp (theta - q) + Kd (theta_dot - q_dot) + Ki z at the step's start becomes
     # its backward-Euler torque Kp (theta - q - dt v+) + Kd (theta_dot - v+) + Ki z = u_n + Kd q_dot - (Kd + dt Kp) v+.
     kp, kd = servo_gains
@@ -509,8 +532,9 @@ def friction_problem(
         params[PER_WHEEL : PER_WHEEL + nw],
         params[EPS],
         params[SHAPE],
-        jac_head,
-        params[HEAD_MU] * params[HEAD_NORMAL],
+        jac_drag,
+        np.array([params[HEAD_MU] * params[HEAD_NORMAL], params[TETHER_N]]),
+        np.array([params[EPS], TETHER_EPS_M_S]),
         joint_coulomb,
         JOINT_EPS_RAD_S,
         servo_offset,

@@ -9,9 +9,18 @@ import pytest
 from test_engine import assert_equivalent, both, short
 
 from rc1_drake.config import JOINT_LIMIT_DEG, NUM_JOINTS, Failure, Friction, Gait, Scenario, Stop
-from rc1_drake.effects import TETHER_EPS_M_S, model_setup, tail_tether_force
+from rc1_drake.effects import model_setup
 from rc1_drake.engine.dynamics import plant_numbers
-from rc1_drake.friction import FAILED, FREE, compliant_stop, friction_parameters, normal_slice
+from rc1_drake.friction import (
+    FAILED,
+    FREE,
+    TETHER_EPS_M_S,
+    TETHER_N,
+    compliant_stop,
+    friction_parameters,
+    normal_slice,
+    tail_end_jacobian,
+)
 from rc1_drake.protocol import simulate
 
 K, D, MARGIN_DEG = 20.0, 0.1, 5.0
@@ -65,30 +74,35 @@ def test_both_engines_agree_on_a_free_joint_2_in_its_compliant_stop():
     assert np.abs(compiled.q[:, 1] - plain.q[:, 1]).max() > 1e-3  # and it changed the run
 
 
-def test_the_tail_tether_drags_the_tails_end_against_its_motion_by_hand():
-    """The straight snake along +x (module pitch 0.125 m, joints 0.0625 m behind each centre): its tail end sits
-    1.6875 m behind the head's centre; the drag there reaches each coordinate through its lever arm."""
-    geometry, tension = plant_numbers().geometry, 0.7
+def test_the_tail_tethers_point_is_the_tails_end_and_its_lever_arms_by_hand():
+    """The straight snake along +x (module pitch 0.125 m, joints 0.0625 m behind each centre): the tail's end sits
+    1.6875 m behind the head's centre; a unit rate of the head's yaw or of joint j moves it along y by its lever arm
+    (its x from the head's centre, or from joint j), and the drag reaches each coordinate through that row."""
+    geometry = plant_numbers().geometry
     rear = -(13 * 0.125 + 0.0625)
-    x = np.zeros(32)
-    x[16 + 2] = 0.1  # turning in place: the tail end moves along y at 0.1 * rear
-    u = 0.1 * rear
-    f_y = -tension * u / math.hypot(u, TETHER_EPS_M_S)
-    force = tail_tether_force(x, geometry, tension)
-    assert force[0] == 0.0 and force[1] == pytest.approx(f_y, rel=1e-12)
-    assert force[2] == pytest.approx(rear * f_y, rel=1e-12)  # (r x F)_z about the head's centre
+    jac = tail_end_jacobian(np.zeros(32), geometry.arrays)
     joints = -0.0625 - 0.125 * np.arange(NUM_JOINTS)
-    np.testing.assert_allclose(force[3:], (rear - joints) * f_y, rtol=1e-12)
-    x = np.zeros(32)
-    x[16] = 0.3  # rolling forward: a pull straight back, no torque
-    expected = np.zeros(16)
-    expected[0] = -tension * 0.3 / math.hypot(0.3, TETHER_EPS_M_S)
-    np.testing.assert_allclose(tail_tether_force(x, geometry, tension), expected, atol=1e-15)
+    np.testing.assert_allclose(jac[0], np.r_[1.0, 0.0, np.zeros(14)], atol=1e-15)
+    np.testing.assert_allclose(jac[1], np.r_[0.0, 1.0, rear, rear - joints], atol=1e-15)
+    params = params_of({"tail_tether_N": 0.7})
+    assert params[TETHER_N] == 0.7 and not params_of({})[TETHER_N]
+    u = jac @ np.r_[0.0, 0.0, 0.1, np.zeros(13)]  # turning in place: the end moves along y at 0.1 * rear
+    f_y = -0.7 * u[1] / math.hypot(u[1], TETHER_EPS_M_S)
+    np.testing.assert_allclose(jac.T @ np.array([0.0, f_y]), np.r_[0.0, f_y, rear * f_y, (rear - joints) * f_y],
+                               rtol=1e-12)  # fmt: skip
+
+
+def test_both_engines_agree_on_a_tether_and_it_slows_the_tail():
+    scenario = short(Scenario(failures=[Failure(joint=7)], effects={"tail_tether_N": 2.0}), seconds=2.0)
+    drake, compiled = both(scenario)
+    assert_equivalent(drake, compiled)
+    plain = both(dataclasses.replace(scenario, effects={}))[1]
+    assert np.abs(compiled.state[-1] - plain.state[-1]).max() > 1e-4  # it changed the run
 
 
 def test_the_snake_rolling_down_a_floor_with_a_tether_follows_its_scalar_equation():
     """10 deg downhill toward +x, the straight snake (no c_long): 14 m v' = 14 m g sin a - 13 mu_long m g cos a
-    - T v / sqrt(v^2 + eps^2), integrated here on its own, against the Drake engine's run (the tether's engine)."""
+    - T v / sqrt(v^2 + eps^2), integrated here on its own, against the Drake engine's run."""
     tension, alpha, mass = 0.5, math.radians(10.0), 0.286
     scenario = Scenario(
         gait=Gait(amplitude_deg=0.0),

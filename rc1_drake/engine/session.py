@@ -120,6 +120,8 @@ class CompiledSession:
             if sensitivities:
                 raise Rc1Error("sensitivities need the compiled engine, which cannot run a Python force")
             return self._on_drake(scenario, initial)
+        if sensitivities and setup.tail_tether_N:
+            raise Rc1Error("sensitivities: the tangent model does not carry the tail tether (effects.TailTether)")
         x = np.array(initial_state(scenario, self.geometry) if initial is None else initial, dtype=float)
         if x.shape != (32,):
             raise ValueError(f"initial state must have 32 entries, got shape {x.shape}")
