@@ -92,7 +92,7 @@ CELLS = [
     Cell("none", "drake", {}, ()),
     Cell("none (reference)", "reference", {}, ()),
     # Friction far from the paper's (issue 40's campaign): the diagnosis starts from the paper's and must refit it.
-    Cell("none, far friction", "drake", {}, (), friction=(("mu_lat", 0.6), ("c_lat", 1.5), ("c_joint", 0.09))),
+    Cell("none (far friction)", "drake", {}, (), friction=(("mu_lat", 0.6), ("c_lat", 1.5), ("c_joint", 0.09))),
     Cell("none (reference, rough 50 Hz)", "reference", {}, (), "rough 50 Hz"),
     Cell("none (reference, rough 100 Hz)", "reference", {}, (), "rough 100 Hz"),
     dataclasses.replace(
