@@ -93,10 +93,10 @@ CELLS = [
     Cell("none (reference)", "reference", {}, ()),
     # Friction far from the paper's (issue 40's campaign): the diagnosis starts from the paper's and must refit it.
     Cell("none (far friction)", "drake", {}, (), friction=(("mu_lat", 0.6), ("c_lat", 1.5), ("c_joint", 0.09))),
-    Cell("none (reference, rough 50 Hz)", "reference", {}, (), "rough 50 Hz"),
-    Cell("none (reference, rough 100 Hz)", "reference", {}, (), "rough 100 Hz"),
+    Cell("none (reference rough 50 Hz)", "reference", {}, (), "rough 50 Hz"),
+    Cell("none (reference rough 100 Hz)", "reference", {}, (), "rough 100 Hz"),
     dataclasses.replace(
-        _library("wheel_toe", 1.0, "reference"), label="wheel_toe x1 (reference, rough 50 Hz)", sampling="rough 50 Hz"
+        _library("wheel_toe", 1.0, "reference"), label="wheel_toe x1 (reference rough 50 Hz)", sampling="rough 50 Hz"
     ),  # fmt: skip
     _library("wheel_toe", 1.0, "reference"),
     *(_library(e, 1.0) for e in PHYSICAL),
