@@ -115,6 +115,9 @@ CELLS = [
 ]
 
 
+assert not any("," in c.label for c in CELLS), "--cells splits on commas: a cell's label has none"
+
+
 def design(trials_per_case: int) -> list:
     return [Case([], trials_per_case), Case([7], trials_per_case), Case([13], trials_per_case),
             Case([7], trials_per_case, bias_deg=J7_BIAS_DEG)]  # fmt: skip
