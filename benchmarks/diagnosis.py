@@ -110,15 +110,20 @@ def is_right(verdict, accepted, effect) -> bool:
     )
 
 
+def final_estimate(result, effect: str, effects: dict) -> tuple:
+    """(the final model's estimate of `effect`, hidden at `effects`, in its fitted coordinates: name -> [value, se],
+    or None if it has none; whether every coordinate's 95% interval holds the truth, or None)."""
+    truth = LIBRARY[effect].coordinates(effect_values(effects, LIBRARY[effect]))
+    estimate = {k: result.final_coordinates[k] for k in truth if k in result.final_coordinates} or None
+    inside = all(abs(v - truth[k]) <= Z95 * se for k, (v, se) in estimate.items()) if estimate else None
+    return estimate, inside
+
+
 def score(result, effect, effects) -> dict:
     """What a row records of a diagnosis with `effect` hidden (at `effects`)."""
     first = result.candidates[0] if result.candidates else None
-    inside, estimate = None, None
-    if effect is not None:  # the final model's estimate (after every round's refit), in the fitted coordinates
-        truth = LIBRARY[effect].coordinates(effect_values(effects, LIBRARY[effect]))
-        estimate = {k: result.final_coordinates[k] for k in truth if k in result.final_coordinates} or None
-        if estimate:
-            inside = all(abs(v - truth[k]) <= Z95 * se for k, (v, se) in estimate.items())
+    # The final model's estimate (after every round's refit), in the fitted coordinates.
+    estimate, inside = final_estimate(result, effect, effects) if effect is not None else (None, None)
     return {
         "verdict": str(result.verdict),
         "accepted": result.accepted,

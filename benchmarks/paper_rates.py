@@ -38,10 +38,9 @@ import diagnosis
 from calibrate import seeds as parse_seeds
 from doc_blocks import REPO_ROOT, check_block, write_block
 
-from rc1_drake.config import Z95, Friction, Stop
+from rc1_drake.config import Friction, Stop
 from rc1_drake.diagnose import diagnose
 from rc1_drake.diagnose.verdict import RATES_FILE, verdict_rates
-from rc1_drake.effects import LIBRARY, effect_values
 from rc1_drake.measurements import load_campaign
 from rc1_drake.synthesize import PAPER_DESIGN, Case, Noise, Variation, synthesize_campaign
 
@@ -144,15 +143,11 @@ def classify(verdict: str, accepted: list, expected) -> str:
 
 def coverage(result, cell: Cell) -> list:
     """For each hidden library effect that was accepted: whether every one of its coordinates' 95% intervals holds
-    the truth."""
-    out = []
-    for name in (n for n in (cell.expected or ()) if n in result.accepted):
-        effect = LIBRARY[name]
-        truth = effect.coordinates(effect_values(cell.hidden, effect))
-        got = {k: result.final_coordinates[k] for k in truth if k in result.final_coordinates}
-        if got:
-            out.append(all(abs(v - truth[k]) <= Z95 * se for k, (v, se) in got.items()))
-    return out
+    the truth (diagnosis.final_estimate)."""
+    inside = [
+        diagnosis.final_estimate(result, n, cell.hidden)[1] for n in (cell.expected or ()) if n in result.accepted
+    ]
+    return [held for held in inside if held is not None]
 
 
 def one(cell: Cell, seed: int, args) -> dict:
@@ -264,6 +259,10 @@ def main():
         if unknown:
             raise SystemExit(f"--cells: unknown cell {unknown[0]!r} (known: {', '.join(known)})")
         cells = [known[c] for c in args.cells.split(",")]
+    try:
+        seed_list = parse_seeds(args.seeds)
+    except ValueError:
+        raise SystemExit(f"--seeds: cannot read {args.seeds!r} (expected a range or list such as 100-105)") from None
     if args.markdown:
         check_block(PAGE, BLOCK, WRITER)
         check_block(README, SUMMARY, WRITER)
@@ -272,7 +271,7 @@ def main():
     rows = [json.loads(line) for line in path.read_text().splitlines()] if path.exists() else []
     rows = [r for r in rows if r["trials_per_case"] == args.trials_per_case]
     done = {(r["cell"], r["seed"]) for r in rows if r.get("variant", "default") == args.variant}
-    jobs = [(c, s) for s in parse_seeds(args.seeds) for c in cells if (c.label, s) not in done]
+    jobs = [(c, s) for s in seed_list for c in cells if (c.label, s) not in done]
     for n, (cell, seed) in enumerate([] if args.table_only else jobs):
         row = one(cell, seed, args)
         rows.append(row)

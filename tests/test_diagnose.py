@@ -586,6 +586,19 @@ def test_the_benchmark_names_a_bad_option_in_one_line_before_any_campaign(tmp_pa
     assert len(lines) == 1 and lines[0].startswith(option) and named in lines[0], proc.stderr
 
 
+@pytest.mark.parametrize("option, value", [("--seeds", "10x"), ("--cells", "none,gravity")])
+def test_the_paper_rates_benchmark_names_a_bad_option_in_one_line_before_any_campaign(tmp_path, option, value):
+    proc = subprocess.run(
+        [sys.executable, str(REPO / "benchmarks" / "paper_rates.py"), option, value, "--out", str(tmp_path / "out")],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert proc.returncode != 0 and not (tmp_path / "out").exists()
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(option) and repr(value.split(",")[-1]) in lines[0], proc.stderr
+
+
 def test_an_interrupted_diagnosis_resumes_from_its_checkpoint_with_the_same_answer(tmp_path):
     campaign = _campaign(tmp_path / "c", {"wheel_toe_deg": 1.5}, design=[Case([], 1), Case([7], 1)])
     options = dict(candidates=["wheel_toe", "head_drag"], input_noise_samples=2, max_rounds=1)

@@ -92,7 +92,7 @@ def test_the_tail_tethers_point_is_the_tails_end_and_its_lever_arms_by_hand():
                                rtol=1e-12)  # fmt: skip
 
 
-def test_both_engines_agree_on_a_tether_and_it_slows_the_tail():
+def test_both_engines_agree_on_a_tether_and_it_changes_the_run():
     scenario = short(Scenario(failures=[Failure(joint=7)], effects={"tail_tether_N": 2.0}), seconds=2.0)
     drake, compiled = both(scenario)
     assert_equivalent(drake, compiled)
