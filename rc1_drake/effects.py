@@ -20,6 +20,7 @@ from collections.abc import Callable
 import numpy as np
 
 from .config import GRAVITY_M_S2, JOINT_LIMIT_DEG, NUM_JOINTS, Gait, JointGait, Rc1Error
+from .discrepancy import NUM_TERMS, term_names
 
 
 @dataclasses.dataclass(frozen=True)
@@ -55,6 +56,7 @@ class ModelSetup:
     head_on_wheel2: float = 0.0  # head weights carried by module 2's wheel (a cantilevered head)
     tail_tether_N: float = 0.0  # a tether's Coulomb pull at the tail's end
     wheel_toe_rad: float = 0.0
+    discrepancy: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(NUM_TERMS))  # discrepancy.py
     extra_forces: list[Callable] = dataclasses.field(default_factory=list)  # f(x) -> (16,) generalized force
 
 
@@ -105,6 +107,7 @@ class Effect:
     # False: a candidate only when asked for (by name, or the `study` group): a mechanism whose rate in the
     # diagnosis is not measured yet, kept out of the default candidates whose rates docs/diagnosis.md reports.
     default_candidate: bool = True
+    discrepancy: bool = False  # True: a term of the discrepancy model (discrepancy.py), for discovery, not a mechanism
 
     def configure(self, setup: ModelSetup, values: dict[str, float]) -> None:
         """Change `setup` for parameter `values` (all of this effect's keys present)."""
@@ -452,6 +455,28 @@ class ImuFault(Effect):
         sensors.imu_bias_rad_s += values["imu_bias_rad_s"]
 
 
+class DiscrepancyTerm(Effect):
+    """One term of the discrepancy model (discrepancy.py): a coefficient times a fixed shape, at the sites of one
+    group or in the failed joints. Not a mechanism: what discovery (diagnose/discover.py) fits when the library's
+    effects leave the data unexplained, named afterwards by its body, variable and sign."""
+
+    discrepancy = True
+    default_candidate = False
+    BOUNDS = {"N_s_per_m": 5.0, "N": 5.0, "Nm": 1.0, "Nm_per_rad": 5.0, "Nm_s_per_rad": 0.5}
+
+    def __init__(self, index: int, group: str, kind: str, unit: str, words: str):
+        self.index, self.group, self.kind, self.unit, self.words = index, group, kind, unit, words
+        self.name = f"discrepancy_{group}_{kind}"
+        where = "each failed joint" if group == "failed_joint" else f"the {group}'s sites"
+        self.summary = f"discrepancy term: {words} at {where}"
+        self.failed_joints_only = group == "failed_joint"
+        bound = self.BOUNDS[unit]
+        self.parameters = (EffectParameter(f"{self.name}_{unit}", -bound, bound, probe=0.1 * bound),)
+
+    def configure(self, setup, values):
+        setup.discrepancy[self.index] = values[self.main.key]
+
+
 LIBRARY: dict[str, Effect] = {}
 
 
@@ -482,6 +507,7 @@ for _effect in (
     *(PotentiometerGain(j) for j in range(1, NUM_JOINTS + 1)),
     CameraDelay(),
     ImuFault(),
+    *(DiscrepancyTerm(i, *term) for i, term in enumerate(term_names())),
 ):
     register(_effect)
 
@@ -490,7 +516,8 @@ for _effect in (
 CANDIDATE_GROUPS = {
     "physical": lambda e: not e.sensor and e.default_candidate,
     "sensor": lambda e: e.sensor,
-    "study": lambda e: not e.default_candidate,  # issue 41's mechanisms of the J2 circling (docs/paper.md)
+    "study": lambda e: not e.default_candidate and not e.discrepancy,  # issue 41's mechanisms (docs/paper.md)
+    "discrepancy": lambda e: e.discrepancy,  # the discrepancy model's terms (discrepancy.py), for discovery
 }
 
 

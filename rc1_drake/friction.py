@@ -38,6 +38,7 @@ from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import BasicVector, LeafSystem, ValueProducer
 
 from .config import GRAVITY_M_S2, NUM_JOINTS, Friction
+from .discrepancy import NJK, NSK, NUM_SITES, NUM_TERMS, joint_shapes, site_arrays, site_coefficients, site_force
 from .kinematics import ChainGeometry, jit, wheel_kinematics_kernel
 from .model import set_payload
 
@@ -189,6 +190,12 @@ def spd_solve(matrix, rhs):
 
 
 @jit
+def _step_solve(matrix, rhs, symmetric):
+    """matrix^-1 rhs: spd_solve, or LU for a step matrix that is not symmetric."""
+    return spd_solve(matrix, rhs) if symmetric else np.linalg.solve(matrix, rhs)
+
+
+@jit
 def _isotropic(u_xy, coulomb, eps):
     """Isotropic Coulomb friction -C u / sqrt(|u|^2 + eps^2) of a point sliding at u_xy (2,): the force,
     its secant rate (scalar) and its tangent matrix (2x2, positive semidefinite)."""
@@ -238,6 +245,10 @@ StepLaws = collections.namedtuple(
         "servo_offset",  # (nv,) the servos' backward-Euler torque clamp(offset - rate v+, +-power)
         "servo_rate",
         "servo_power",
+        "site_long",  # (S, nv) the discrepancy sites' velocity Jacobians along and across their modules
+        "site_lat",
+        "site_coeff",  # (S, NSK) each site's discrepancy coefficients; S = 0 when the model has none
+        "joint_dry",  # (nv,) the discrepancy's dry torque coefficient in failed joints (may be negative)
     ],
 )
 
@@ -249,7 +260,8 @@ def assemble_step(v_next, tangent, laws, exact=False):
     linearizes each Coulomb term through the origin); `exact`: the tangent unclipped (coulomb_law). Also returns
     which servos are not saturated."""
     (jac_long, jac_lat, spans, mass_damped, dt, mu_long, mu_lat, c_long, c_lat, normal_force, eps, shape, jac_drag,
-     drag_coulomb, drag_eps, joint_coulomb, joint_eps, servo_offset, servo_rate, servo_power) = laws  # fmt: skip
+     drag_coulomb, drag_eps, joint_coulomb, joint_eps, servo_offset, servo_rate, servo_power, site_long, site_lat,
+     site_coeff, joint_dry) = laws  # fmt: skip
     n = v_next.shape[0]
     force = np.zeros(n)
     matrix = mass_damped.copy()
@@ -289,6 +301,20 @@ def assemble_step(v_next, tangent, laws, exact=False):
             f_p, secant, k_p = _isotropic(jac @ v_next, drag_coulomb[p], drag_eps[p])
             force += jac.T @ f_p
             matrix += dt * (jac.T @ k_p @ jac if tangent else secant * (jac.T @ jac))
+    # The discrepancy model (discrepancy.py), by its exact rate in both modes: its terms are small beside Eqs. 4-5.
+    for s in range(site_coeff.shape[0]):
+        f_s, rate = site_force(site_long[s] @ v_next, site_lat[s] @ v_next, site_coeff[s], eps)
+        force += site_long[s] * f_s[0] + site_lat[s] * f_s[1]
+        for a in range(n):
+            along = rate[0, 0] * site_long[s, a] + rate[1, 0] * site_lat[s, a]
+            across = rate[0, 1] * site_long[s, a] + rate[1, 1] * site_lat[s, a]
+            for b in range(n):
+                matrix[a, b] -= dt * (along * site_long[s, b] + across * site_lat[s, b])
+    for a in range(n):
+        if joint_dry[a] != 0.0:
+            root = np.sqrt(v_next[a] ** 2 + joint_eps**2)
+            force[a] -= joint_dry[a] * v_next[a] / root
+            matrix[a, a] += dt * joint_dry[a] * joint_eps**2 / root**3
     return force, matrix, linear
 
 
@@ -310,13 +336,14 @@ def _implicit_friction_force(laws, mass_matrix, momentum_free, v, newton_steps):
     # v, linear where not saturated, a constant torque where saturated.
     _, matrix, linear = assemble_step(v, False, laws)
     servo = _servo_torque(servo_offset, servo_rate, servo_power, v)[0]
-    v_next = spd_solve(matrix, momentum_free + dt * (linear * servo_offset + (1.0 - linear) * servo))
+    symmetric = laws.site_coeff.shape[0] == 0  # the discrepancy's side force is not symmetric
+    v_next = _step_solve(matrix, momentum_free + dt * (linear * servo_offset + (1.0 - linear) * servo), symmetric)
     # Newton steps from that secant start, each backtracked until the residual's norm falls (Armijo): a plain
     # Newton step cycles where the servo clamp or a Coulomb kink switches within the step, and the servos then
     # chatter (seen at 1 ms on noisy measured angles with two undamped steps).
     residual, matrix = _step_residual(v_next, laws, momentum_free)
     for _ in range(newton_steps):
-        step = spd_solve(matrix, residual)
+        step = _step_solve(matrix, residual, symmetric)
         if np.abs(step).max() < NEWTON_TOLERANCE_M_S:  # converged: take the last step, nothing left to check
             v_next = v_next - step
             break
@@ -395,6 +422,10 @@ def implicit_friction_force(
         offset,
         rate,
         power,
+        np.zeros((0, nv)),
+        np.zeros((0, nv)),
+        np.zeros((0, NSK)),
+        np.zeros(nv),
     )
     force, torque = _implicit_friction_force(laws, mass_matrix, momentum_free, v, newton_steps)
     return force if servo is None else (force, torque)
@@ -425,7 +456,9 @@ def friction_parameters(*, friction: Friction, sgn_smoothing_m_s: float, setup, 
     if not sgn_smoothing_m_s > 0:
         raise ValueError("the implicit friction needs sgn_smoothing_m_s > 0")
     nw = len(geometry.wheel_module)
-    params = np.zeros(PER_WHEEL + 2 * nw)
+    if nw != NUM_SITES - 2:
+        raise ValueError(f"the discrepancy model's sites expect {NUM_SITES - 2} wheels, the geometry has {nw}")
+    params = np.zeros(PER_WHEEL + 2 * nw + NUM_TERMS)
     params[: EPS + 1] = FrictionForces.pack(friction, sgn_smoothing_m_s)
     params[SHAPE] = [
         setup.lateral_asymmetry,
@@ -447,6 +480,7 @@ def friction_parameters(*, friction: Friction, sgn_smoothing_m_s: float, setup, 
     carried[1], carried[2] = setup.head_on_wheel2, -max(setup.head_on_wheel2 - 1.0, 0.0)
     params[normal_slice(nw)] = (weight + carried * weight[0])[geometry.wheel_module]
     params[toe_slice(nw)] = setup.wheel_toe_rad
+    params[discrepancy_slice(nw)] = setup.discrepancy
     return params
 
 
@@ -456,6 +490,11 @@ def normal_slice(num_wheels: int) -> slice:
 
 def toe_slice(num_wheels: int) -> slice:
     return slice(PER_WHEEL + num_wheels, PER_WHEEL + 2 * num_wheels)
+
+
+def discrepancy_slice(num_wheels: int) -> slice:
+    """The discrepancy model's coefficients (discrepancy.term_names' order), after the toes."""
+    return slice(PER_WHEEL + 2 * num_wheels, PER_WHEEL + 2 * num_wheels + NUM_TERMS)
 
 
 @jit
@@ -504,6 +543,20 @@ def friction_problem(
     state = params[FAILED]
     joint_damping[3:] = np.where(state == FREE, params[C_JOINT], np.where(state == LOCKED, LOCKED_DAMPING, 0.0))
     joint_coulomb[3:] = np.where(state == FREE, params[JOINT_COULOMB], 0.0)
+    theta = params[PER_WHEEL + 2 * nw : PER_WHEEL + 2 * nw + NUM_TERMS]
+    site_long, site_lat, site_coeff = np.zeros((0, nv)), np.zeros((0, nv)), np.zeros((0, NSK))
+    joint_dry = np.zeros(nv)
+    known = np.zeros(nv)  # the discrepancy's failed-joint bias and spring, at the step's start
+    if theta.any():
+        site_long, site_lat = _site_jacobians(x, chain)
+        site_coeff = site_coefficients(theta)
+        joint = theta[NUM_TERMS - NJK :]
+        for j in range(state.shape[0]):
+            if state[j] == FREE:
+                shapes = joint_shapes(x[3 + j], 0.0, JOINT_EPS_RAD_S)
+                known[3 + j] = joint[0] * shapes[0] + joint[1] * shapes[1]
+                joint_damping[3 + j] += joint[2]
+                joint_dry[3 + j] = joint[3]
     jac_drag = np.zeros((4, nv))  # the head centre's velocity: the planar joint's x, y rates; then the tail's end
     jac_drag[0, 0] = 1.0
     jac_drag[1, 1] = 1.0
@@ -519,6 +572,7 @@ def friction_problem(
     servo_rate[3:] = kd + dt * kp
     power[3:] = servo_power
     spring, stop_rate = compliant_stop(x, params, dt)
+    spring += known
     laws = StepLaws(
         jac_long,
         jac_lat,
@@ -540,8 +594,22 @@ def friction_problem(
         servo_offset,
         servo_rate,
         power,
+        site_long,
+        site_lat,
+        site_coeff,
+        joint_dry,
     )
     return laws, mass_matrix @ v + dt * other_force + dt * spring, spring, toe
+
+
+@jit
+def _site_jacobians(x, chain):
+    """(S, nv) each discrepancy site's velocity along and across its module, per unit rate of each coordinate."""
+    joint_in_parent, joint_in_child, _, _, _ = chain
+    module, offset, unit = site_arrays(chain)
+    _, direction, jacobian = wheel_kinematics_kernel(x, joint_in_parent, joint_in_child, module, offset, unit)
+    local = np.conj(direction).reshape(-1, 1) * jacobian
+    return np.ascontiguousarray(local.real), np.ascontiguousarray(local.imag)
 
 
 @jit
@@ -630,7 +698,9 @@ class FrictionForces(LeafSystem):
         scalars[SHAPE] = PAPER_SHAPE
         scalars[HEAD_NORMAL] = geometry.module_mass[0] * GRAVITY_M_S2
         self._param_index = self.DeclareNumericParameter(
-            BasicVector(np.concatenate([scalars, np.zeros(NUM_JOINTS), normal, np.zeros(self._num_wheels)]))
+            BasicVector(
+                np.concatenate([scalars, np.zeros(NUM_JOINTS), normal, np.zeros(self._num_wheels), np.zeros(NUM_TERMS)])
+            )
         )
         self._known_index = self.DeclareAbstractParameter(AbstractValue.Make(KnownForces()))
         self._inputs = (

@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 from conftest import first_seconds
 
+from rc1_drake.discrepancy import NUM_TERMS
 from rc1_drake.engine.dynamics import chain_terms, plant_numbers
 from rc1_drake.engine.tangent import chain_tangent, wheel_local_tangent
 from rc1_drake.kinematics import wheel_kinematics_kernel
@@ -54,6 +55,22 @@ def test_wheel_local_tangent_matches_central_differences():
             np.testing.assert_allclose(dlocal[d], expected, atol=1e-8)
 
 
+# A discrepancy term of every kind (discrepancy.py), small as a fitted one would be.
+DISCREPANCY = {
+    "discrepancy_tail_dry_long_N": 0.3,
+    "discrepancy_front_side_by_long_N_s_per_m": 0.4,
+    "discrepancy_middle_drag_lat_N_s_per_m": -0.3,
+    "discrepancy_rear_dry_lat_N": 0.2,
+    "discrepancy_head_push_lat_N": 0.1,
+    "discrepancy_head_drag_long_N_s_per_m": 0.2,
+    "discrepancy_rear_push_long_N": -0.1,
+    "discrepancy_failed_joint_bias_Nm": 0.02,
+    "discrepancy_failed_joint_spring_Nm_per_rad": 0.1,
+    "discrepancy_failed_joint_drag_Nm_s_per_rad": 0.01,
+    "discrepancy_failed_joint_dry_Nm": 0.01,
+}
+
+
 def test_friction_tangent_matches_central_differences_of_the_solve():
     """dv+ of the implicit friction and servo step along state, parameter and command directions, against
     central differences of the solve itself (eps = 1 cm/s keeps the law smooth on the difference's scale)."""
@@ -75,6 +92,7 @@ def test_friction_tangent_matches_central_differences_of_the_solve():
             "head_drag_mu": 0.3,
             "joint_coulomb_Nm": 0.05,
             "wheel_toe_deg": 1.0,
+            **DISCREPANCY,
         }
     )
     params = fr.friction_parameters(friction=scenario.friction, sgn_smoothing_m_s=0.01, setup=setup, geometry=geometry)
@@ -91,15 +109,17 @@ def test_friction_tangent_matches_central_differences_of_the_solve():
 
     x = run.state[40]
     keys = [fr.MU_LAT, fr.MU_LONG, fr.C_LAT, fr.C_LONG, fr.C_JOINT, 6, 7, 8, fr.HEAD_MU, fr.JOINT_COULOMB]
-    count = len(keys) + 3
+    count = len(keys) + 4
     dx = np.zeros((count, 32))
     dparams = np.zeros((count, len(params)))
     dcommand = np.zeros((count, 13))
     for d, key in enumerate(keys):
         dparams[d, key] = 1.0
     dparams[len(keys), fr.toe_slice(13)] = 1.0  # every wheel's toe
-    dx[len(keys) + 1] = rng.normal(size=32) * np.r_[np.full(16, 0.05), np.full(16, 0.2)]
-    dcommand[len(keys) + 2] = rng.normal(size=13)
+    disc = fr.discrepancy_slice(13)
+    dparams[len(keys) + 1, disc] = rng.normal(size=NUM_TERMS)  # every discrepancy term at once
+    dx[len(keys) + 2] = rng.normal(size=32) * np.r_[np.full(16, 0.05), np.full(16, 0.2)]
+    dcommand[len(keys) + 3] = rng.normal(size=13)
     base = v_plus(x, params, command)
     M, bias, _ = chain_terms(x, mass, inertia, com, jp, jc, 0j)
     mw, dbias, _ = chain_tangent(x, dx, np.tile(base - x[16:], (count, 1)), mass, inertia, com, jp, jc, 0j)
@@ -142,6 +162,7 @@ def test_run_sensitivities_match_central_differences_of_whole_runs():
         "head_drag_mu": 0.1,
         "joint_coulomb_Nm": 0.02,
         "wheel_toe_deg": 0.5,
+        **DISCREPANCY,
     }
 
     def varied(scenario, name, h):
@@ -161,7 +182,8 @@ def test_run_sensitivities_match_central_differences_of_whole_runs():
     trial = first_seconds(load_trial("data/paper_campaign/j2_1.json"), 0.6)
     replayer = Replayer(trial, engine="compiled")
     replay = replay_scenario(trial, run_scenario.friction, effects, replayer.numerics)
-    every = [n for n in sensitivity_parameters() if not n.startswith("start_")]  # below: the start's own test
+    # below: the start's own test; of the discrepancy's terms, those set (their every kind)
+    every = [n for n in sensitivity_parameters() if not n.startswith(("start_", "discrepancy_")) or n in DISCREPANCY]
     assert {"mu_lat", "wheel_toe_deg", "ground_slope_x_deg", "ground_slope_direction_deg"} <= set(every)
     cases = [
         (lambda s, **kw: session.simulate(s, **kw), run_scenario, every),

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..discrepancy import NJK, NSK, NUM_TERMS, SITE_GROUP, joint_shapes, site_arrays, site_force, site_shapes
 from ..friction import (
     C_JOINT,
     C_LAT,
@@ -209,10 +210,17 @@ def friction_tangent(
     jac_long, jac_lat, spans, normal, eps, shape = (laws.jac_long, laws.jac_lat, laws.spans, laws.normal_force,
                                                     laws.eps, laws.shape)  # fmt: skip
     mu_long, mu_lat, c_long, c_lat = laws.mu_long, laws.mu_lat, laws.c_long, laws.c_lat
-    low = cholesky(K)  # the exact tangent may lose definiteness where a Stribeck law falls: LU then
+    # The exact tangent may lose definiteness where a Stribeck law falls, or symmetry with a discrepancy term: LU then
+    low = cholesky(K) if laws.site_coeff.shape[0] == 0 else np.zeros((0, 0))
     local, dlocal = wheel_local_tangent(x, dx, joint_in_parent, joint_in_child, wheel_module, wheel_offset, toe)
     free = params[FAILED] == FREE
     kd = servo_gains[1]
+    disc = slice(PER_WHEEL + 2 * nw, PER_WHEEL + 2 * nw + NUM_TERMS)
+    theta = params[disc]
+    sites = theta.any() or dparams[:, disc].any()
+    if sites:
+        module, offset, unit = site_arrays(chain)
+        site_local, site_dlocal = wheel_local_tangent(x, dx, joint_in_parent, joint_in_child, module, offset, unit)
     out = np.empty((dx.shape[0], nv))
     for d in range(dx.shape[0]):
         dp = dparams[d]
@@ -253,6 +261,8 @@ def friction_tangent(
             if free[j - 3]:
                 dF[j] -= dp[JOINT_COULOMB] * v_plus[j] / np.sqrt(v_plus[j] ** 2 + JOINT_EPS_RAD_S**2)
             dF[j] += linear[j] * (dcommand[d, j - 3] + kd * dx[d, nv + j])
+        if sites:
+            dF += _discrepancy_tangent(site_local, site_dlocal[d], v_plus, x, dx[d], theta, dp[disc], free, eps)
         head = dp[HEAD_MU] * params[HEAD_NORMAL] + params[HEAD_MU] * dp[HEAD_NORMAL]
         if head != 0.0:
             root = np.sqrt(v_plus[0] ** 2 + v_plus[1] ** 2 + eps * eps)
@@ -260,6 +270,36 @@ def friction_tangent(
             dF[1] -= head * v_plus[1] / root
         dR -= dt * dF
         out[d] = -(cholesky_solve(low, dR) if low.shape[0] else np.linalg.solve(K, dR))
+    return out
+
+
+@jit
+def _discrepancy_tangent(local, dlocal, v_plus, x, dx, theta, dtheta, free, eps):
+    """The discrepancy force's change (discrepancy.py) at fixed v+ along one direction: the sites' Jacobians move
+    with the state (dlocal), the coefficients by dtheta; in failed joints the bias and spring (at the step's
+    start) move with the angle too. Its change with v+ is in the Newton matrix (friction.assemble_step)."""
+    nv = v_plus.shape[0]
+    out = np.zeros(nv)
+    for s in range(local.shape[0]):
+        g = SITE_GROUP[s]
+        if g < 0:
+            continue
+        u, du = 0.0 + 0.0j, 0.0 + 0.0j
+        for a in range(nv):
+            u += local[s, a] * v_plus[a]
+            du += dlocal[s, a] * v_plus[a]
+        coeff, dcoeff = theta[g * NSK : (g + 1) * NSK], dtheta[g * NSK : (g + 1) * NSK]
+        f, rate = site_force(u.real, u.imag, coeff, eps)
+        df = rate[:, 0] * du.real + rate[:, 1] * du.imag + site_shapes(u.real, u.imag, eps) @ dcoeff
+        for a in range(nv):
+            out[a] += dlocal[s, a].real * f[0] + dlocal[s, a].imag * f[1] + local[s, a].real * df[0]
+            out[a] += local[s, a].imag * df[1]
+    joint, djoint = theta[NUM_TERMS - NJK :], dtheta[NUM_TERMS - NJK :]
+    for j in range(free.shape[0]):
+        if free[j]:
+            k = 3 + j
+            known = joint_shapes(x[k], v_plus[k], JOINT_EPS_RAD_S)  # bias, spring at the start; drag, dry at v+
+            out[k] += djoint @ known - joint[1] * dx[k]
     return out
 
 
