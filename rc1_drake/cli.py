@@ -406,6 +406,12 @@ def _add_diagnose(sub) -> None:
     )
     dgn.add_argument("--rounds", type=_positive_int, default=3, metavar="N", help="effects to add at most (default 3)")
     dgn.add_argument(
+        "--discover",
+        action="store_true",
+        help="when the verdict is unexplained, fit the discrepancy model (sparse terms at the head, wheels, tail "
+        "and failed joints), name what survives and add it to the model file",
+    )
+    dgn.add_argument(
         "--input-noise-samples",
         type=_positive_int,
         default=DIAGNOSE_NOISE_SAMPLES,
@@ -941,12 +947,20 @@ def cmd_diagnose(args) -> int:
         on_round=keep_round,
     )
     print(result.format())
-    _write_atomically(
-        out,
-        lambda p: p.write_text(
-            model_to_yaml(result.friction, result.effects, comment=f"rc1 diagnose {campaign.path}: {result.verdict}")
-        ),
-    )
+    effects, note = result.effects, f"rc1 diagnose {campaign.path}: {result.verdict}"
+    if args.discover and result.verdict != "unexplained":
+        print(f"discovery: not run (the verdict is {result.verdict}, not unexplained)")
+    elif args.discover:
+        from .diagnose.discover import discover_campaign
+
+        found = discover_campaign(
+            result.trials, result.friction, result.effects, workers=args.workers, scheduler=args.scheduler,
+            progress=progress,
+        )  # fmt: skip
+        print(found.format())
+        if found.terms:
+            effects, note = found.effects, note + f"; discovered {', '.join(t.key for t in found.terms)}"
+    _write_atomically(out, lambda p: p.write_text(model_to_yaml(result.friction, effects, comment=note)))
     resumed = f", {result.resumed} of them from an interrupted run's checkpoint" if result.resumed else ""
     print(f"model file: {out}  ({result.simulations} simulations{resumed}, {result.wall_s:.0f} s)")
     if args.json:

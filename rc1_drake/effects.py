@@ -19,7 +19,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from .config import GRAVITY_M_S2, JOINT_LIMIT_DEG, NUM_JOINTS, Gait, JointGait, Rc1Error
+from .config import GRAVITY_M_S2, JOINT_LIMIT_DEG, NUM_JOINTS, Friction, Gait, JointGait, Rc1Error
 from .discrepancy import NUM_TERMS, term_names
 
 
@@ -471,7 +471,20 @@ class DiscrepancyTerm(Effect):
         self.summary = f"discrepancy term: {words} at {where}"
         self.failed_joints_only = group == "failed_joint"
         bound = self.BOUNDS[unit]
-        self.parameters = (EffectParameter(f"{self.name}_{unit}", -bound, bound, probe=0.1 * bound),)
+        self.parameters = (EffectParameter(f"{self.name}_{unit}", self._lower(bound), bound, probe=0.1 * bound),)
+
+    def _lower(self, bound: float) -> float:
+        """A term that resists motion may take away at most the paper's own friction where it acts: none at the
+        wheelless head, the tail's end or in a failed joint's dry friction, c_lat / c_long at a wheel (its Coulomb
+        part, which needs the wheel's load, is bounded as the other terms), c_joint in a failed joint."""
+        if not self.kind.startswith(("drag", "dry")):
+            return -bound
+        paper = Friction()
+        if self.group == "failed_joint":
+            return -paper.c_joint if self.kind == "drag" else 0.0
+        if self.group in ("head", "tail"):
+            return 0.0
+        return {"drag_lat": -paper.c_lat, "drag_long": -paper.c_long}.get(self.kind, -bound)
 
     def configure(self, setup, values):
         setup.discrepancy[self.index] = values[self.main.key]

@@ -38,7 +38,7 @@ from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import BasicVector, LeafSystem, ValueProducer
 
 from .config import GRAVITY_M_S2, NUM_JOINTS, Friction
-from .discrepancy import NJK, NSK, NUM_SITES, NUM_TERMS, joint_shapes, site_arrays, site_coefficients, site_force
+from .discrepancy import NJK, NSK, NUM_SITES, NUM_TERMS, site_arrays, site_coefficients, site_force
 from .kinematics import ChainGeometry, jit, wheel_kinematics_kernel
 from .model import set_payload
 
@@ -185,14 +185,23 @@ def spd_solve(matrix, rhs):
     """matrix^-1 rhs for a symmetric positive definite matrix, by Cholesky (LU if it is not definite)."""
     low = cholesky(matrix)
     if low.shape[0] == 0:
-        return np.linalg.solve(matrix, rhs)
+        return lu_solve(matrix, rhs)
     return cholesky_solve(low, rhs)
+
+
+@jit
+def lu_solve(matrix, rhs):
+    """matrix^-1 rhs by LU; NaN where the matrix is not finite (a run that blew up: the engine then stops it with
+    an error, where LAPACK's exception from compiled code can corrupt the heap)."""
+    if not np.isfinite(matrix).all():
+        return np.full(rhs.shape[0], np.nan)
+    return np.linalg.solve(matrix, rhs)
 
 
 @jit
 def _step_solve(matrix, rhs, symmetric):
     """matrix^-1 rhs: spd_solve, or LU for a step matrix that is not symmetric."""
-    return spd_solve(matrix, rhs) if symmetric else np.linalg.solve(matrix, rhs)
+    return spd_solve(matrix, rhs) if symmetric else lu_solve(matrix, rhs)
 
 
 @jit
@@ -302,6 +311,8 @@ def assemble_step(v_next, tangent, laws, exact=False):
             force += jac.T @ f_p
             matrix += dt * (jac.T @ k_p @ jac if tangent else secant * (jac.T @ jac))
     # The discrepancy model (discrepancy.py), by its exact rate in both modes: its terms are small beside Eqs. 4-5.
+    if site_coeff.shape[0] == 0:
+        return force, matrix, linear
     for s in range(site_coeff.shape[0]):
         f_s, rate = site_force(site_long[s] @ v_next, site_lat[s] @ v_next, site_coeff[s], eps)
         force += site_long[s] * f_s[0] + site_lat[s] * f_s[1]
@@ -543,18 +554,18 @@ def friction_problem(
     state = params[FAILED]
     joint_damping[3:] = np.where(state == FREE, params[C_JOINT], np.where(state == LOCKED, LOCKED_DAMPING, 0.0))
     joint_coulomb[3:] = np.where(state == FREE, params[JOINT_COULOMB], 0.0)
+    spring, stop_rate = compliant_stop(x, params, dt)
     theta = params[PER_WHEEL + 2 * nw : PER_WHEEL + 2 * nw + NUM_TERMS]
-    site_long, site_lat, site_coeff = np.zeros((0, nv)), np.zeros((0, nv)), np.zeros((0, NSK))
-    joint_dry = np.zeros(nv)
-    known = np.zeros(nv)  # the discrepancy's failed-joint bias and spring, at the step's start
+    # The discrepancy model: no sites and nothing allocated per step when it has no term (the paper's model).
+    site_long = site_lat = np.zeros((0, nv))
+    site_coeff, joint_dry = np.zeros((0, NSK)), np.zeros(0)
     if theta.any():
         site_long, site_lat = _site_jacobians(x, chain)
-        site_coeff = site_coefficients(theta)
+        site_coeff, joint_dry = site_coefficients(theta), np.zeros(nv)
         joint = theta[NUM_TERMS - NJK :]
         for j in range(state.shape[0]):
-            if state[j] == FREE:
-                shapes = joint_shapes(x[3 + j], 0.0, JOINT_EPS_RAD_S)
-                known[3 + j] = joint[0] * shapes[0] + joint[1] * shapes[1]
+            if state[j] == FREE:  # bias and spring at the step's start; drag and dry in the implicit solve
+                spring[3 + j] += joint[0] - joint[1] * x[3 + j]
                 joint_damping[3 + j] += joint[2]
                 joint_dry[3 + j] = joint[3]
     jac_drag = np.zeros((4, nv))  # the head centre's velocity: the planar joint's x, y rates; then the tail's end
@@ -571,8 +582,6 @@ def friction_problem(
     servo_offset[3:] = servo_command + kd * v[3:]
     servo_rate[3:] = kd + dt * kp
     power[3:] = servo_power
-    spring, stop_rate = compliant_stop(x, params, dt)
-    spring += known
     laws = StepLaws(
         jac_long,
         jac_lat,

@@ -12,14 +12,18 @@ at all unless it removes MIN_FALL and MIN_GAIN of the held-out cost without term
 
 import dataclasses
 import math
+import os
 
 import numpy as np
 
-from ..config import Friction
-from ..effects import LIBRARY, candidate_names
+from ..config import Friction, Rc1Error
+from ..effects import LIBRARY, candidate_names, coordinate_owner, shifted
 from ..engine.session import sensitivity_parameters
+from ..executor import make_executor
+from ..replay import Replayer
 from ..sysid.evaluate import Evaluator
-from ..sysid.residual import replay_residual, replay_residual_and_jacobian
+from ..sysid.input_noise import bootstrap_twin
+from ..sysid.residual import replay_residual, replay_residual_and_jacobian, trial_residual
 from ..sysid.stats import Z95
 
 SIZES = (1, 2, 3, 4)  # how many terms a sparse model may have: a missing effect is one or two mechanisms
@@ -29,6 +33,7 @@ SIZES = (1, 2, 3, 4)  # how many terms a sparse model may have: a missing effect
 MIN_FALL = 0.25
 MIN_GAIN = 3.84
 REFINEMENTS = 2  # Gauss-Newton steps on the surviving terms, by replay
+HALVINGS = 4  # of a step whose runs fail or whose cost rises
 MATCH_COSINE = 0.98  # a term "matches" a library coordinate whose column is this parallel to its prediction
 WHERE = {
     "head": "the head's centre",
@@ -123,19 +128,19 @@ def library_coordinates() -> list[str]:
 
 
 def discover(
-    trials, friction: Friction, effects: dict, *, evaluator: Evaluator | None = None, bias=None, sizes=SIZES
+    trials, friction: Friction, effects: dict, *, evaluator: Evaluator | None = None, sizes=SIZES
 ) -> Discovery:
-    """The discrepancy model fitted to `trials` at the model (`friction`, `effects`); `bias`: per trial, the
-    replay's own miss to take off its residuals (the diagnosis's linearize.Linearization.bias)."""
+    """The discrepancy model fitted to `trials` at the model (`friction`, `effects`), on their residuals with the
+    replay's own miss on the model's motion taken off (corrected_residual)."""
     evaluator = evaluator or Evaluator(None)
     start = evaluator.simulations
     keys, library = discrepancy_keys(trials), library_coordinates()
     parts = evaluator.map(
-        replay_residual_and_jacobian,
+        corrected_and_jacobian,
         [(t, friction, effects, tuple(keys + library)) for t in trials],
-        "the discrepancy's columns",
+        "the discrepancy's columns (replays and twins)",
     )
-    r = [p[0] - (bias[k] if bias is not None else 0.0) for k, p in enumerate(parts)]
+    r = [p[0] for p in parts]
     columns = [p[1][:, : len(keys)] for p in parts]
     library_columns = np.vstack([p[1][:, len(keys) :] for p in parts])
     path, cost_without = _sparsity_path(r, columns, sizes)
@@ -145,21 +150,53 @@ def discover(
         return Discovery([], 0, path, float(cost_without.sum()), 0.0, 0.0, dict(effects), spent)
     support = [keys[j] for j in chosen["support"]]
     values = dict(zip(support, chosen["values"], strict=True))
-    values, fitted = _refined(trials, friction, effects, values, evaluator, bias)
+    values, fitted = _refined(trials, friction, effects, values, evaluator)
     jac, residual, _ = fitted
     sigma2 = float(residual @ residual) / max(len(residual) - len(values), 1)
     errors = np.sqrt(np.diag(sigma2 * np.linalg.pinv(jac.T @ jac)))
     model = {**effects, **values}
     before = sum(float(x @ x) for x in r)
-    after = _held_out_by_replay(trials, friction, model, values, fitted, evaluator, bias)
+    after = _held_out_by_replay(trials, friction, model, values, fitted, evaluator)
     terms = []
     for j, (key, value) in enumerate(values.items()):
-        name = next(n for n in candidate_names(["discrepancy"]) if LIBRARY[n].main.key == key)
+        name = _effect_name(key)
         matches = _matches(jac[:, j] * value, library_columns, library)
         terms.append(Term(name, key, value, float(errors[j]), term_words(name, value), matches))
     return Discovery(
         terms, chosen["size"], path, float(cost_without.sum()), before, after, model, evaluator.simulations - start
     )
+
+
+def discover_campaign(trials, friction: Friction, effects: dict, *, workers=None, scheduler=None, progress=None):
+    """discover() with its replays on an executor (all local cores by default; Dask's at `scheduler`)."""
+    with make_executor(workers=workers or min(os.cpu_count() or 1, len(trials)), scheduler=scheduler) as executor:
+        return discover(trials, friction, effects, evaluator=Evaluator(executor, progress))
+
+
+def twin_residual(trial, friction: Friction, effects) -> np.ndarray:
+    """The replay's own miss on this trial's motion as the model makes it: the trial's noise-free twin (the model
+    driven by the gait from the trial's start, with its camera misses; sysid.input_noise.bootstrap_twin) replayed
+    at the model. The diagnosis's bias, without its noise draws."""
+    twin = bootstrap_twin(trial, friction, effects)[0]
+    return trial_residual(twin, Replayer(twin).run(friction, effects))
+
+
+def corrected_residual(trial, friction: Friction, effects) -> np.ndarray:
+    """A trial's residuals less the replay's own miss on the model's motion: a term moves them both along the
+    measured angles (the replay) and through the motion the servos make of the gait (the twin); on a wheeled
+    body held to its path the second is most of it (docs/findings.md)."""
+    return replay_residual(trial, friction, effects) - twin_residual(trial, friction, effects)
+
+
+def corrected_and_jacobian(trial, friction: Friction, effects, names) -> tuple:
+    """corrected_residual and its columns by `names`: the replay's exact (its sensitivities), the twin's by a
+    forward difference over each coordinate's probe step."""
+    r, jac = replay_residual_and_jacobian(trial, friction, effects, names)
+    base = twin_residual(trial, friction, effects)
+    for j, name in enumerate(names):
+        h = next(p.probe_step for p in coordinate_owner(name).coordinate_space() if p.key == name)
+        jac[:, j] -= (twin_residual(trial, friction, shifted(effects, name, h)) - base) / h
+    return r - base, jac
 
 
 def _sparse_fit(x, y, size):
@@ -208,28 +245,60 @@ def _choose(path, cost_without):
     return min((p for p in with_terms if p["held"].sum() <= limit), key=lambda p: p["size"])
 
 
-def _refined(trials, friction, effects, values, evaluator, bias) -> tuple:
-    """Gauss-Newton steps on the surviving terms by replay (their bounds kept): (values, (their Jacobian, the
-    residual, each trial's row count) there)."""
+def _refined(trials, friction, effects, values, evaluator) -> tuple:
+    """Gauss-Newton steps on the surviving terms (their bounds kept), each halved while a replay fails or the cost
+    rises: (values, (their Jacobian, the residual, each trial's row count) there)."""
     keys = list(values)
-    bounds = [next(p for e in LIBRARY.values() for p in e.parameters if p.key == k) for k in keys]
-    for step in range(REFINEMENTS + 1):
-        parts = evaluator.map(
-            replay_residual_and_jacobian,
-            [(t, friction, {**effects, **values}, tuple(keys)) for t in trials],
-            "the discovered terms refined",
-        )
-        residual = np.concatenate([p[0] - (bias[k] if bias is not None else 0.0) for k, p in enumerate(parts)])
-        jac = np.vstack([p[1] for p in parts])
-        if step == REFINEMENTS:
-            return values, (jac, residual, [len(p[0]) for p in parts])
-        move = np.linalg.lstsq(jac, -residual, rcond=None)[0]
-        values = {
-            k: float(np.clip(values[k] + m, b.lower, b.upper)) for k, m, b in zip(keys, move, bounds, strict=True)
-        }
+    clipped = _clipped
+
+    def at(v):
+        try:
+            parts = evaluator.map(
+                corrected_and_jacobian,
+                [(t, friction, {**effects, **v}, tuple(keys)) for t in trials],
+                "the discovered terms refined",
+            )
+        except Rc1Error:  # a run blew up at these values
+            return None
+        return np.concatenate([p[0] for p in parts]), np.vstack([p[1] for p in parts]), [len(p[0]) for p in parts]
+
+    values = clipped(values)
+    here = at(values)
+    for _ in range(HALVINGS):  # the linear fit's values may be too far for the runs: toward the model
+        if here is not None:
+            break
+        values = {k: 0.5 * x for k, x in values.items()}
+        here = at(values)
+    if here is None:
+        raise Rc1Error(f"discovery: every run with {', '.join(keys)} failed, even at 1/{2**HALVINGS} of the fit")
+    for _ in range(REFINEMENTS):
+        move = np.linalg.lstsq(here[1], -here[0], rcond=None)[0]
+        for _ in range(HALVINGS):
+            proposal = clipped({k: values[k] + m for k, m in zip(keys, move, strict=True)})
+            there = at(proposal)
+            if there is not None and there[0] @ there[0] < here[0] @ here[0]:
+                values, here = proposal, there
+                break
+            move = 0.5 * move
+        else:
+            break
+    return values, (here[1], here[0], here[2])
 
 
-def _held_out_by_replay(trials, friction, model, values, fitted, evaluator, bias) -> float:
+def _clipped(values: dict) -> dict:
+    """Term values within their bounds."""
+    out = {}
+    for key, value in values.items():
+        bound = LIBRARY[_effect_name(key)].main
+        out[key] = float(np.clip(value, bound.lower, bound.upper))
+    return out
+
+
+def _effect_name(key: str) -> str:
+    return next(n for n in candidate_names(["discrepancy"]) if LIBRARY[n].main.key == key)
+
+
+def _held_out_by_replay(trials, friction, model, values, fitted, evaluator) -> float:
     """The sum over trials of each one's squared residuals replayed with the terms refitted (linearly, from the
     final fit) on the other trials."""
     jac, residual, sizes = fitted
@@ -238,9 +307,9 @@ def _held_out_by_replay(trials, friction, model, values, fitted, evaluator, bias
     for k, t in enumerate(trials):
         rows = np.r_[0 : ends[k], ends[k + 1] : ends[-1]]
         move = np.linalg.lstsq(jac[rows], -residual[rows], rcond=None)[0]
-        jobs.append((t, friction, {**model, **{key: values[key] + m for key, m in zip(values, move, strict=True)}}))
-    out = evaluator.map(replay_residual, jobs, "each trial held out")
-    return sum(float(x @ x) for x in (o - (bias[k] if bias is not None else 0.0) for k, o in enumerate(out)))
+        moved = {key: values[key] + m for key, m in zip(values, move, strict=True)}
+        jobs.append((t, friction, {**model, **_clipped(moved)}))
+    return sum(float(x @ x) for x in evaluator.map(corrected_residual, jobs, "each trial held out"))
 
 
 def _matches(prediction, library_columns, names) -> list[dict]:

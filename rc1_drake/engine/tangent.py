@@ -36,6 +36,7 @@ from ..friction import (
     cholesky_solve,
     coulomb_law,
     friction_problem,
+    lu_solve,
     spd_solve,
 )
 from ..kinematics import jit
@@ -269,7 +270,7 @@ def friction_tangent(
             dF[0] -= head * v_plus[0] / root
             dF[1] -= head * v_plus[1] / root
         dR -= dt * dF
-        out[d] = -(cholesky_solve(low, dR) if low.shape[0] else np.linalg.solve(K, dR))
+        out[d] = -(cholesky_solve(low, dR) if low.shape[0] else lu_solve(K, dR))
     return out
 
 
