@@ -408,8 +408,8 @@ def _add_diagnose(sub) -> None:
     dgn.add_argument(
         "--discover",
         action="store_true",
-        help="when the verdict is unexplained, fit the discrepancy model (sparse terms at the head, wheels, tail "
-        "and failed joints), name what survives and add it to the model file",
+        help="when the verdict is unexplained or ambiguous, fit the discrepancy model (sparse terms at the head, "
+        "wheels, tail and failed joints), name what survives and add it to the model file",
     )
     dgn.add_argument(
         "--input-noise-samples",
@@ -892,9 +892,10 @@ def cmd_compensate(args) -> int:
 
 
 def cmd_effects(args) -> int:
+    from .discrepancy import GROUPS, JOINT_KINDS, SITE_KINDS
     from .effects import LIBRARY
 
-    for effect in LIBRARY.values():
+    for effect in (e for e in LIBRARY.values() if not e.discrepancy):
         notes = [] if effect.seen_in_replay else ["gait-driven runs only"]
         notes += [] if effect.default_candidate else ["study: a diagnosis candidate when asked for, --candidates study"]
         print(f"{effect.name}: {effect.summary}" + (f" ({'; '.join(notes)})" if notes else ""))
@@ -903,6 +904,11 @@ def cmd_effects(args) -> int:
                 f"    {p.key:<30} [{p.lower:g}, {p.upper:g}]"
                 + ("" if p.fitted else f"  setting, default {p.default:g}")
             )
+    sites, joints = ", ".join(k for k, _, _ in SITE_KINDS), ", ".join(k for k, _, _ in JOINT_KINDS)
+    print(
+        "discrepancy terms (rc1 diagnose --discover; keys discrepancy_<where>_<kind>_<unit>): at "
+        f"{', '.join(GROUPS)}: {sites}; at failed_joint: {joints}"
+    )
     return 0
 
 
@@ -948,8 +954,8 @@ def cmd_diagnose(args) -> int:
     )
     print(result.format())
     effects, note = result.effects, f"rc1 diagnose {campaign.path}: {result.verdict}"
-    if args.discover and result.verdict != "unexplained":
-        print(f"discovery: not run (the verdict is {result.verdict}, not unexplained)")
+    if args.discover and result.verdict not in ("unexplained", "ambiguous"):
+        print(f"discovery: not run (the verdict is {result.verdict}: nothing left to explain)")
     elif args.discover:
         from .diagnose.discover import discover_campaign
 

@@ -556,9 +556,9 @@ def friction_problem(
     joint_coulomb[3:] = np.where(state == FREE, params[JOINT_COULOMB], 0.0)
     spring, stop_rate = compliant_stop(x, params, dt)
     theta = params[PER_WHEEL + 2 * nw : PER_WHEEL + 2 * nw + NUM_TERMS]
-    # The discrepancy model: no sites and nothing allocated per step when it has no term (the paper's model).
-    site_long = site_lat = np.zeros((0, nv))
-    site_coeff, joint_dry = np.zeros((0, NSK)), np.zeros(0)
+    # The discrepancy model: no sites when it has no term (the paper's model), as empty views: nothing allocated.
+    site_long = site_lat = site_coeff = jac_long[:0]
+    joint_dry = params[:0]
     if theta.any():
         site_long, site_lat = _site_jacobians(x, chain)
         site_coeff, joint_dry = site_coefficients(theta), np.zeros(nv)
