@@ -104,7 +104,10 @@ def replay(args) -> list:
     batch = time.perf_counter() - start
     scenario = replay_scenario(trial, friction, None, replayer.numerics)
     # Every coordinate a diagnosis fits that has a sensitivity: the friction and the differentiable effects'.
-    names = [*FRICTION_NAMES, *(p.key for e in LIBRARY.values() if e.differentiable for p in e.coordinate_space())]
+    names = [
+        *FRICTION_NAMES,
+        *(p.key for e in LIBRARY.values() if e.differentiable and not e.discrepancy for p in e.coordinate_space()),
+    ]
     replayer.session.simulate(scenario, initial=replayer.initial, sensitivities=names[:1])
     derivatives = (
         replayer.session.simulate(scenario, initial=replayer.initial, sensitivities=names).wall_time_s / run.wall_time_s

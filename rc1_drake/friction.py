@@ -254,10 +254,10 @@ StepLaws = collections.namedtuple(
         "servo_offset",  # (nv,) the servos' backward-Euler torque clamp(offset - rate v+, +-power)
         "servo_rate",
         "servo_power",
-        "site_long",  # (S, nv) the discrepancy sites' velocity Jacobians along and across their modules
-        "site_lat",
-        "site_coeff",  # (S, NSK) each site's discrepancy coefficients; S = 0 when the model has none
-        "joint_dry",  # (nv,) the discrepancy's dry torque coefficient in failed joints (may be negative)
+        # (S, 2 nv + NSK) per discrepancy site (discrepancy.py): its velocity Jacobian along its module, across it,
+        # and its coefficients, in one array (a field per part costs every call its reference counts); S = 0 when
+        # the model has no term. Its failed-joint terms are in joint_coulomb, mass_damped and the known torque.
+        "sites",
     ],
 )
 
@@ -269,8 +269,8 @@ def assemble_step(v_next, tangent, laws, exact=False):
     linearizes each Coulomb term through the origin); `exact`: the tangent unclipped (coulomb_law). Also returns
     which servos are not saturated."""
     (jac_long, jac_lat, spans, mass_damped, dt, mu_long, mu_lat, c_long, c_lat, normal_force, eps, shape, jac_drag,
-     drag_coulomb, drag_eps, joint_coulomb, joint_eps, servo_offset, servo_rate, servo_power, site_long, site_lat,
-     site_coeff, joint_dry) = laws  # fmt: skip
+     drag_coulomb, drag_eps, joint_coulomb, joint_eps, servo_offset, servo_rate, servo_power,
+     sites) = laws  # fmt: skip
     n = v_next.shape[0]
     force = np.zeros(n)
     matrix = mass_damped.copy()
@@ -292,8 +292,8 @@ def assemble_step(v_next, tangent, laws, exact=False):
                 matrix[a, b] += la * jac_long[w, b] + ta * jac_lat[w, b]
     linear = np.zeros(n)
     for a in range(n):
-        if joint_coulomb[a] > 0.0:
-            f_j, s_j, t_j = coulomb_law(v_next[a], joint_coulomb[a], joint_eps, 0.0, 0.0, 1.0)
+        if joint_coulomb[a] != 0.0:  # a discrepancy's dry torque may take some away
+            f_j, s_j, t_j = coulomb_law(v_next[a], joint_coulomb[a], joint_eps, 0.0, 0.0, 1.0, not exact)
             force[a] -= f_j
             matrix[a, a] += dt * (t_j if tangent else s_j)
         raw = servo_offset[a] - servo_rate[a] * v_next[a]
@@ -311,21 +311,15 @@ def assemble_step(v_next, tangent, laws, exact=False):
             force += jac.T @ f_p
             matrix += dt * (jac.T @ k_p @ jac if tangent else secant * (jac.T @ jac))
     # The discrepancy model (discrepancy.py), by its exact rate in both modes: its terms are small beside Eqs. 4-5.
-    if site_coeff.shape[0] == 0:
-        return force, matrix, linear
-    for s in range(site_coeff.shape[0]):
-        f_s, rate = site_force(site_long[s] @ v_next, site_lat[s] @ v_next, site_coeff[s], eps)
-        force += site_long[s] * f_s[0] + site_lat[s] * f_s[1]
+    for s in range(sites.shape[0]):
+        along_s, across_s = sites[s, :n], sites[s, n : 2 * n]
+        f_s, rate = site_force(along_s @ v_next, across_s @ v_next, sites[s, 2 * n :], eps)
+        force += along_s * f_s[0] + across_s * f_s[1]
         for a in range(n):
-            along = rate[0, 0] * site_long[s, a] + rate[1, 0] * site_lat[s, a]
-            across = rate[0, 1] * site_long[s, a] + rate[1, 1] * site_lat[s, a]
+            along = rate[0, 0] * along_s[a] + rate[1, 0] * across_s[a]
+            across = rate[0, 1] * along_s[a] + rate[1, 1] * across_s[a]
             for b in range(n):
-                matrix[a, b] -= dt * (along * site_long[s, b] + across * site_lat[s, b])
-    for a in range(n):
-        if joint_dry[a] != 0.0:
-            root = np.sqrt(v_next[a] ** 2 + joint_eps**2)
-            force[a] -= joint_dry[a] * v_next[a] / root
-            matrix[a, a] += dt * joint_dry[a] * joint_eps**2 / root**3
+                matrix[a, b] -= dt * (along * along_s[b] + across * across_s[b])
     return force, matrix, linear
 
 
@@ -347,7 +341,7 @@ def _implicit_friction_force(laws, mass_matrix, momentum_free, v, newton_steps):
     # v, linear where not saturated, a constant torque where saturated.
     _, matrix, linear = assemble_step(v, False, laws)
     servo = _servo_torque(servo_offset, servo_rate, servo_power, v)[0]
-    symmetric = laws.site_coeff.shape[0] == 0  # the discrepancy's side force is not symmetric
+    symmetric = laws.sites.shape[0] == 0  # the discrepancy's side force is not symmetric
     v_next = _step_solve(matrix, momentum_free + dt * (linear * servo_offset + (1.0 - linear) * servo), symmetric)
     # Newton steps from that secant start, each backtracked until the residual's norm falls (Armijo): a plain
     # Newton step cycles where the servo clamp or a Coulomb kink switches within the step, and the servos then
@@ -434,9 +428,6 @@ def implicit_friction_force(
         rate,
         power,
         np.zeros((0, nv)),
-        np.zeros((0, nv)),
-        np.zeros((0, NSK)),
-        np.zeros(nv),
     )
     force, torque = _implicit_friction_force(laws, mass_matrix, momentum_free, v, newton_steps)
     return force if servo is None else (force, torque)
@@ -557,17 +548,17 @@ def friction_problem(
     spring, stop_rate = compliant_stop(x, params, dt)
     theta = params[PER_WHEEL + 2 * nw : PER_WHEEL + 2 * nw + NUM_TERMS]
     # The discrepancy model: no sites when it has no term (the paper's model), as empty views: nothing allocated.
-    site_long = site_lat = site_coeff = jac_long[:0]
-    joint_dry = params[:0]
+    sites = jac_long[:0]
     if theta.any():
-        site_long, site_lat = _site_jacobians(x, chain)
-        site_coeff, joint_dry = site_coefficients(theta), np.zeros(nv)
+        sites = np.empty((NUM_SITES, 2 * nv + NSK))
+        sites[:, :nv], sites[:, nv : 2 * nv] = _site_jacobians(x, chain)
+        sites[:, 2 * nv :] = site_coefficients(theta)
         joint = theta[NUM_TERMS - NJK :]
         for j in range(state.shape[0]):
             if state[j] == FREE:  # bias and spring at the step's start; drag and dry in the implicit solve
                 spring[3 + j] += joint[0] - joint[1] * x[3 + j]
                 joint_damping[3 + j] += joint[2]
-                joint_dry[3 + j] = joint[3]
+                joint_coulomb[3 + j] += joint[3]
     jac_drag = np.zeros((4, nv))  # the head centre's velocity: the planar joint's x, y rates; then the tail's end
     jac_drag[0, 0] = 1.0
     jac_drag[1, 1] = 1.0
@@ -603,10 +594,7 @@ def friction_problem(
         servo_offset,
         servo_rate,
         power,
-        site_long,
-        site_lat,
-        site_coeff,
-        joint_dry,
+        sites,
     )
     return laws, mass_matrix @ v + dt * other_force + dt * spring, spring, toe
 

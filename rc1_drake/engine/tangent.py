@@ -212,7 +212,7 @@ def friction_tangent(
                                                     laws.eps, laws.shape)  # fmt: skip
     mu_long, mu_lat, c_long, c_lat = laws.mu_long, laws.mu_lat, laws.c_long, laws.c_lat
     # The exact tangent may lose definiteness where a Stribeck law falls, or symmetry with a discrepancy term: LU then
-    low = cholesky(K) if laws.site_coeff.shape[0] == 0 else np.zeros((0, 0))
+    low = cholesky(K) if laws.sites.shape[0] == 0 else np.zeros((0, 0))
     local, dlocal = wheel_local_tangent(x, dx, joint_in_parent, joint_in_child, wheel_module, wheel_offset, toe)
     free = params[FAILED] == FREE
     kd = servo_gains[1]
