@@ -551,7 +551,7 @@ def friction_problem(
     sites = jac_long[:0]
     if theta.any():
         sites = np.empty((NUM_SITES, 2 * nv + NSK))
-        sites[:, :nv], sites[:, nv : 2 * nv] = _site_jacobians(x, chain)
+        sites[:, :nv], sites[:, nv : 2 * nv] = site_jacobians(x, chain)
         sites[:, 2 * nv :] = site_coefficients(theta)
         joint = theta[NUM_TERMS - NJK :]
         for j in range(state.shape[0]):
@@ -600,7 +600,7 @@ def friction_problem(
 
 
 @jit
-def _site_jacobians(x, chain):
+def site_jacobians(x, chain):
     """(S, nv) each discrepancy site's velocity along and across its module, per unit rate of each coordinate."""
     joint_in_parent, joint_in_child, _, _, _ = chain
     module, offset, unit = site_arrays(chain)

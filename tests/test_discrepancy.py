@@ -24,7 +24,7 @@ from rc1_drake.discrepancy import (
 )
 from rc1_drake.effects import LIBRARY, candidate_names, model_setup
 from rc1_drake.engine.dynamics import plant_numbers
-from rc1_drake.friction import _site_jacobians, discrepancy_slice, friction_parameters, tail_end_jacobian
+from rc1_drake.friction import discrepancy_slice, friction_parameters, site_jacobians, tail_end_jacobian
 from rc1_drake.protocol import simulate
 
 # Nonzero terms of every kind, for the engines and the tangent: a term per group and the failed joint's four.
@@ -94,7 +94,7 @@ def test_the_sites_are_the_heads_centre_the_wheels_and_the_tails_end_by_hand():
     tether's point (test_mechanisms), a wheel of module k as its centre 0.125 (k - 1) m behind the head."""
     geometry = plant_numbers().geometry
     x = np.zeros(32)
-    along, across = _site_jacobians(x, geometry.arrays)
+    along, across = site_jacobians(x, geometry.arrays)
     assert along.shape == across.shape == (NUM_SITES, 16)
     np.testing.assert_allclose(along[0], np.eye(16)[0], atol=1e-15)
     np.testing.assert_allclose(across[0], np.eye(16)[1], atol=1e-15)
