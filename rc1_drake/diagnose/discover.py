@@ -15,6 +15,7 @@ import math
 import os
 
 import numpy as np
+from scipy.linalg import block_diag
 
 from ..config import Friction, Rc1Error
 from ..effects import LIBRARY, candidate_names, coordinate_owner, shifted
@@ -22,9 +23,9 @@ from ..engine.session import sensitivity_parameters
 from ..executor import make_executor
 from ..replay import Replayer
 from ..sysid.evaluate import Evaluator
-from ..sysid.input_noise import bootstrap_twin
-from ..sysid.residual import replay_residual, replay_residual_and_jacobian, trial_residual
-from ..sysid.stats import Z95
+from ..sysid.input_noise import INPUT_NOISE_SAMPLES, bootstrap_twin, input_noise_covariance
+from ..sysid.residual import replay_residual, replay_residual_and_jacobian, residual_channels, trial_residual
+from ..sysid.stats import Z95, channel_variances
 
 SIZES = (1, 2, 3, 4)  # how many terms a sparse model may have: a missing effect is one or two mechanisms
 # What a sparse model must remove of the held-out cost to say anything: a share of it, and the chi-square(1) 95%
@@ -152,8 +153,7 @@ def discover(
     values = dict(zip(support, chosen["values"], strict=True))
     values, fitted = _refined(trials, friction, effects, values, evaluator)
     jac, residual, _ = fitted
-    sigma2 = float(residual @ residual) / max(len(residual) - len(values), 1)
-    errors = np.sqrt(np.diag(sigma2 * np.linalg.pinv(jac.T @ jac)))
+    errors = _standard_errors(trials, friction, {**effects, **values}, fitted, evaluator)
     model = {**effects, **values}
     before = sum(float(x @ x) for x in r)
     after = _held_out_by_replay(trials, friction, model, values, fitted, evaluator)
@@ -283,6 +283,24 @@ def _refined(trials, friction, effects, values, evaluator) -> tuple:
         else:
             break
     return values, (here[1], here[0], here[2])
+
+
+def _standard_errors(trials, friction, model, fitted, evaluator) -> np.ndarray:
+    """The terms' standard errors by the sandwich (J^T J)^-1 J^T S J (J^T J)^-1, S each channel's variance
+    (sysid.stats.channel_variances) plus the covariance the angle noise in the replays' input causes
+    (INPUT_NOISE_SAMPLES resampled replays per trial): as white residuals, the interval of a failed joint's bias
+    on a noisy campaign missed the truth (docs/findings.md)."""
+    jac, residual, sizes = fitted
+    channels = np.concatenate([residual_channels(np.zeros(n)) for n in sizes])
+    spread = np.diag(channel_variances(residual, channels, jac.shape[1]))
+    blocks = evaluator.map(
+        input_noise_covariance,
+        [(t, friction, model, INPUT_NOISE_SAMPLES, k) for k, t in enumerate(trials)],
+        "the input noise at the discovered terms",
+    )
+    inv = np.linalg.pinv(jac.T @ jac)
+    cov = inv @ jac.T @ (spread + block_diag(*blocks)) @ jac @ inv
+    return np.sqrt(np.clip(np.diag(cov), 0.0, None))
 
 
 def _clipped(values: dict) -> dict:
