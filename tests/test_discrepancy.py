@@ -7,6 +7,7 @@ import math
 import numpy as np
 import pytest
 from test_engine import assert_equivalent, both, short
+from test_mechanisms import assert_rolls_down_a_floor_against_its_scalar_equation
 
 from rc1_drake.config import Failure, Friction, Gait, Scenario, Stop
 from rc1_drake.discrepancy import (
@@ -116,23 +117,8 @@ def test_both_engines_agree_on_every_kind_of_term_and_the_terms_change_the_run()
 
 
 def test_a_tail_drag_on_the_snake_rolling_down_a_floor_follows_its_scalar_equation():
-    """10 deg downhill toward +x, the straight snake (no c_long): the tail's longitudinal dry term T acts as a
-    tether there, 14 m v' = 14 m g sin a - 13 mu_long m g cos a - T v / sqrt(v^2 + eps^2), eps the wheels'."""
-    tension, alpha, mass = 0.5, math.radians(10.0), 0.286
-    scenario = Scenario(
-        gait=Gait(amplitude_deg=0.0),
-        friction=dataclasses.replace(Friction(), c_long=0.0),
-        effects={"ground_slope_deg": 10.0, "ground_slope_direction_deg": 0.0, "discrepancy_tail_dry_long_N": tension},
-        stop=Stop(line_x_m=None, revolutions=None, time_limit_s=1.0),
-    )
-    run = simulate(scenario=scenario)
-    eps = scenario.numerics.sgn_smoothing_m_s
-    dt, v = 1e-5, 0.0
-    for _ in range(round(1.0 / dt)):
-        drive = 14 * mass * 9.81 * math.sin(alpha) - 13 * 0.12 * mass * 9.81 * math.cos(alpha)
-        v += dt * (drive - tension * v / math.hypot(v, eps)) / (14 * mass)
-    assert run.state[-1, 16] == pytest.approx(v, rel=2e-3)
-    assert abs(run.state[-1, 17]) < 1e-6
+    """The tail's longitudinal dry term acts as a tether there on a snake rolling straight (eps: the wheels')."""
+    assert_rolls_down_a_floor_against_its_scalar_equation("discrepancy_tail_dry_long_N")
 
 
 def test_a_failed_joints_spring_and_bias_hold_it_where_they_balance():

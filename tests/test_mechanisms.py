@@ -100,20 +100,26 @@ def test_both_engines_agree_on_a_tether_and_it_changes_the_run():
     assert np.abs(compiled.state[-1] - plain.state[-1]).max() > 1e-4  # it changed the run
 
 
-def test_the_snake_rolling_down_a_floor_with_a_tether_follows_its_scalar_equation():
-    """10 deg downhill toward +x, the straight snake (no c_long): 14 m v' = 14 m g sin a - 13 mu_long m g cos a
-    - T v / sqrt(v^2 + eps^2), integrated here on its own, against the Drake engine's run."""
+def assert_rolls_down_a_floor_against_its_scalar_equation(key: str, eps_m_s=None):
+    """10 deg downhill toward +x, the straight snake (no c_long), with a drag of T = 0.5 N at the tail's end set by
+    effect parameter `key`: 14 m v' = 14 m g sin a - 13 mu_long m g cos a - T v / sqrt(v^2 + eps^2), integrated here
+    on its own, against the run (eps: the drag's smoothing, the wheels' when None)."""
     tension, alpha, mass = 0.5, math.radians(10.0), 0.286
     scenario = Scenario(
         gait=Gait(amplitude_deg=0.0),
         friction=dataclasses.replace(Friction(), c_long=0.0),
-        effects={"ground_slope_deg": 10.0, "ground_slope_direction_deg": 0.0, "tail_tether_N": tension},
+        effects={"ground_slope_deg": 10.0, "ground_slope_direction_deg": 0.0, key: tension},
         stop=Stop(line_x_m=None, revolutions=None, time_limit_s=1.0),
     )
     run = simulate(scenario=scenario)
+    eps = scenario.numerics.sgn_smoothing_m_s if eps_m_s is None else eps_m_s
     dt, v = 1e-5, 0.0
     for _ in range(round(1.0 / dt)):
         drive = 14 * mass * 9.81 * math.sin(alpha) - 13 * 0.12 * mass * 9.81 * math.cos(alpha)
-        v += dt * (drive - tension * v / math.hypot(v, TETHER_EPS_M_S)) / (14 * mass)
+        v += dt * (drive - tension * v / math.hypot(v, eps)) / (14 * mass)
     assert run.state[-1, 16] == pytest.approx(v, rel=2e-3)
     assert abs(run.state[-1, 17]) < 1e-6
+
+
+def test_the_snake_rolling_down_a_floor_with_a_tether_follows_its_scalar_equation():
+    assert_rolls_down_a_floor_against_its_scalar_equation("tail_tether_N", TETHER_EPS_M_S)

@@ -18,14 +18,14 @@ import numpy as np
 from scipy.linalg import block_diag
 
 from ..config import Friction, Rc1Error
-from ..effects import LIBRARY, candidate_names, coordinate_owner, shifted
+from ..effects import LIBRARY, candidate_names, coordinate_owner, parameter, parameter_owner, shifted
 from ..engine.session import sensitivity_parameters
 from ..executor import make_executor
 from ..replay import Replayer
 from ..sysid.evaluate import Evaluator
 from ..sysid.input_noise import INPUT_NOISE_SAMPLES, bootstrap_twin, input_noise_covariance
 from ..sysid.residual import replay_residual, replay_residual_and_jacobian, residual_channels, trial_residual
-from ..sysid.stats import Z95, channel_variances
+from ..sysid.stats import Z95, channel_variances, sandwich
 
 SIZES = (1, 2, 3, 4)  # how many terms a sparse model may have: a missing effect is one or two mechanisms
 # What a sparse model must remove of the held-out cost to say anything: a share of it, and the chi-square(1) 95%
@@ -62,8 +62,7 @@ class Term:
 
 @dataclasses.dataclass
 class Discovery:
-    terms: list[Term]
-    size: int  # how many terms; 0: none earns its place
+    terms: list[Term]  # none: no term earns its place
     path: list[dict]  # per number of terms: which and their held-out cost (leave one trial out, linear)
     cost_without: float  # held-out cost without terms (the sum of squared standardized residuals)
     heldout_before: float  # by replay: each trial at the final model
@@ -148,23 +147,20 @@ def discover(
     chosen = _choose(path, cost_without)
     if chosen is None:
         spent = evaluator.simulations - start
-        return Discovery([], 0, path, float(cost_without.sum()), 0.0, 0.0, dict(effects), spent)
+        return Discovery([], path, float(cost_without.sum()), 0.0, 0.0, dict(effects), spent)
     support = [keys[j] for j in chosen["support"]]
     values = dict(zip(support, chosen["values"], strict=True))
     values, fitted = _refined(trials, friction, effects, values, evaluator)
-    jac, residual, _ = fitted
-    errors = _standard_errors(trials, friction, {**effects, **values}, fitted, evaluator)
     model = {**effects, **values}
+    errors = _standard_errors(trials, friction, model, fitted, evaluator)
     before = sum(float(x @ x) for x in r)
     after = _held_out_by_replay(trials, friction, model, values, fitted, evaluator)
     terms = []
     for j, (key, value) in enumerate(values.items()):
-        name = _effect_name(key)
-        matches = _matches(jac[:, j] * value, library_columns, library)
+        name = parameter_owner(key).name
+        matches = _matches(fitted[0][:, j] * value, library_columns, library)
         terms.append(Term(name, key, value, float(errors[j]), term_words(name, value), matches))
-    return Discovery(
-        terms, chosen["size"], path, float(cost_without.sum()), before, after, model, evaluator.simulations - start
-    )
+    return Discovery(terms, path, float(cost_without.sum()), before, after, model, evaluator.simulations - start)
 
 
 def discover_campaign(trials, friction: Friction, effects: dict, *, workers=None, scheduler=None, progress=None):
@@ -241,7 +237,8 @@ def _choose(path, cost_without):
     gain = float(cost_without.sum() - best["held"].sum())
     if gain < MIN_GAIN or gain < MIN_FALL * cost_without.sum():
         return None
-    limit = best["held"].sum() + math.sqrt(len(gain_per := cost_without - best["held"])) * gain_per.std(ddof=1)
+    gain_per_trial = cost_without - best["held"]
+    limit = best["held"].sum() + math.sqrt(len(gain_per_trial)) * gain_per_trial.std(ddof=1)
     return min((p for p in with_terms if p["held"].sum() <= limit), key=lambda p: p["size"])
 
 
@@ -249,7 +246,6 @@ def _refined(trials, friction, effects, values, evaluator) -> tuple:
     """Gauss-Newton steps on the surviving terms (their bounds kept), each halved while a replay fails or the cost
     rises: (values, (their Jacobian, the residual, each trial's row count) there)."""
     keys = list(values)
-    clipped = _clipped
 
     def at(v):
         try:
@@ -262,7 +258,7 @@ def _refined(trials, friction, effects, values, evaluator) -> tuple:
             return None
         return np.concatenate([p[0] for p in parts]), np.vstack([p[1] for p in parts]), [len(p[0]) for p in parts]
 
-    values = clipped(values)
+    values = _clipped(values)
     here = at(values)
     for _ in range(HALVINGS):  # the linear fit's values may be too far for the runs: toward the model
         if here is not None:
@@ -274,7 +270,7 @@ def _refined(trials, friction, effects, values, evaluator) -> tuple:
     for _ in range(REFINEMENTS):
         move = np.linalg.lstsq(here[1], -here[0], rcond=None)[0]
         for _ in range(HALVINGS):
-            proposal = clipped({k: values[k] + m for k, m in zip(keys, move, strict=True)})
+            proposal = _clipped({k: values[k] + m for k, m in zip(keys, move, strict=True)})
             there = at(proposal)
             if there is not None and there[0] @ there[0] < here[0] @ here[0]:
                 values, here = proposal, there
@@ -286,10 +282,10 @@ def _refined(trials, friction, effects, values, evaluator) -> tuple:
 
 
 def _standard_errors(trials, friction, model, fitted, evaluator) -> np.ndarray:
-    """The terms' standard errors by the sandwich (J^T J)^-1 J^T S J (J^T J)^-1, S each channel's variance
-    (sysid.stats.channel_variances) plus the covariance the angle noise in the replays' input causes
-    (INPUT_NOISE_SAMPLES resampled replays per trial): as white residuals, the interval of a failed joint's bias
-    on a noisy campaign missed the truth (docs/findings.md)."""
+    """The terms' standard errors by the sandwich (sysid.stats.sandwich; inf where the data do not constrain a
+    term), S each channel's variance (sysid.stats.channel_variances) plus the covariance the angle noise in the
+    replays' input causes (INPUT_NOISE_SAMPLES resampled replays per trial): as white residuals, the interval of a
+    failed joint's bias on a noisy campaign missed the truth (docs/findings.md)."""
     jac, residual, sizes = fitted
     channels = np.concatenate([residual_channels(np.zeros(n)) for n in sizes])
     spread = np.diag(channel_variances(residual, channels, jac.shape[1]))
@@ -298,22 +294,13 @@ def _standard_errors(trials, friction, model, fitted, evaluator) -> np.ndarray:
         [(t, friction, model, INPUT_NOISE_SAMPLES, k) for k, t in enumerate(trials)],
         "the input noise at the discovered terms",
     )
-    inv = np.linalg.pinv(jac.T @ jac)
-    cov = inv @ jac.T @ (spread + block_diag(*blocks)) @ jac @ inv
-    return np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    cov, null = sandwich(jac, spread + block_diag(*blocks))
+    return np.where(null, np.inf, np.sqrt(np.clip(np.diag(cov), 0.0, None)))
 
 
 def _clipped(values: dict) -> dict:
     """Term values within their bounds."""
-    out = {}
-    for key, value in values.items():
-        bound = LIBRARY[_effect_name(key)].main
-        out[key] = float(np.clip(value, bound.lower, bound.upper))
-    return out
-
-
-def _effect_name(key: str) -> str:
-    return next(n for n in candidate_names(["discrepancy"]) if LIBRARY[n].main.key == key)
+    return {key: float(np.clip(value, parameter(key).lower, parameter(key).upper)) for key, value in values.items()}
 
 
 def _held_out_by_replay(trials, friction, model, values, fitted, evaluator) -> float:

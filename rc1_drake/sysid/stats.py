@@ -31,6 +31,17 @@ def channel_variances(r, channels, num_parameters: int) -> np.ndarray:
     return variance
 
 
+def sandwich(jac, spread) -> tuple:
+    """The least-squares estimate's covariance (J^T J)^-1 J^T S J (J^T J)^-1 for residuals of covariance S
+    (`spread`), with (J^T J)^-1 taken on the identifiable subspace; and which coordinates leave that subspace (the
+    data do not constrain them)."""
+    _, sv, vt = np.linalg.svd(jac, full_matrices=False)
+    keep = sv > 1e-9 * max(sv.max(), 1e-300)
+    inv = (vt[keep].T / sv[keep] ** 2) @ vt[keep]
+    null = np.abs(vt[~keep]).max(axis=0) > 1e-6 if (~keep).any() else np.zeros(jac.shape[1], dtype=bool)
+    return inv @ jac.T @ spread @ jac @ inv, null
+
+
 @dataclasses.dataclass
 class Uncertainty:
     names: list[str]
@@ -100,17 +111,12 @@ def uncertainty(
         columns.append((residuals(*with_values(friction, effects, {p.name: value + step})) - r0) / step)
         per_percent.append(0.01 * (abs(value) if p.is_friction and value > 0 else span))
     jac = np.column_stack(columns)
-    m, n = jac.shape
-    variance = channel_variances(r0, getattr(residuals, "channels", None), n)
-    u, sv, vt = np.linalg.svd(jac, full_matrices=False)
-    keep = sv > 1e-9 * max(sv.max(), 1e-300)
-    inv = (vt[keep].T / sv[keep] ** 2) @ vt[keep]  # (J^T J)^-1 on the identifiable subspace
-    spread = np.diag(variance)
+    n = jac.shape[1]
+    spread = np.diag(channel_variances(r0, getattr(residuals, "channels", None), n))
     if input_noise_samples and hasattr(residuals, "input_noise"):
         spread = spread + residuals.input_noise(friction, effects, samples=input_noise_samples)
-    cov = inv @ jac.T @ spread @ jac @ inv  # the least-squares estimate's covariance (sandwich)
+    cov, null = sandwich(jac, spread)
     values = [parameter_value(p.name, friction, effects) for p in free]
-    null = np.abs(vt[~keep]).max(axis=0) > 1e-6 if (~keep).any() else np.zeros(n, dtype=bool)
     se = [math.inf if null[i] else float(math.sqrt(max(cov[i, i], 0.0))) for i in range(n)]
     d = np.sqrt(np.clip(np.diag(cov), 1e-300, None))
     corr = np.where(np.outer(d, d) > 0, cov / np.outer(d, d), 0.0)
