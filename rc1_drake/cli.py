@@ -953,20 +953,8 @@ def cmd_diagnose(args) -> int:
         on_round=keep_round,
     )
     print(result.format())
-    effects, note = result.effects, f"rc1 diagnose {campaign.path}: {result.verdict}"
-    if args.discover and result.verdict not in ("unexplained", "ambiguous"):
-        print(f"discovery: not run (the verdict is {result.verdict}: nothing left to explain)")
-    elif args.discover:
-        from .diagnose.discover import discover_campaign
-
-        found = discover_campaign(
-            result.trials, result.friction, result.effects, workers=args.workers, scheduler=args.scheduler,
-            progress=progress,
-        )  # fmt: skip
-        print(found.format())
-        if found.terms:
-            effects, note = found.effects, note + f"; discovered {', '.join(t.key for t in found.terms)}"
-    _write_atomically(out, lambda p: p.write_text(model_to_yaml(result.friction, effects, comment=note)))
+    note = f"rc1 diagnose {campaign.path}: {result.verdict}"
+    _write_atomically(out, lambda p: p.write_text(model_to_yaml(result.friction, result.effects, comment=note)))
     resumed = f", {result.resumed} of them from an interrupted run's checkpoint" if result.resumed else ""
     print(f"model file: {out}  ({result.simulations} simulations{resumed}, {result.wall_s:.0f} s)")
     if args.json:
@@ -987,8 +975,30 @@ def cmd_diagnose(args) -> int:
         }.items():
             _write_atomically(args.plots / name, lambda p, fig=fig: fig.savefig(p, format="png", dpi=110))
             plt.close(fig)
+    if args.discover:  # last: whatever befalls it, the diagnosis's results are written
+        args.kept[:] = [f"the diagnosis's model in {out}"]
+        _discover_after(args, result, out, note, progress)
     Checkpoint.discard(checkpoint)
     return 0
+
+
+def _discover_after(args, result, out: Path, note: str, progress) -> None:
+    """rc1 diagnose --discover: the discrepancy model fitted where the verdict left something to explain, its terms
+    added to the model file."""
+    if result.verdict not in ("unexplained", "ambiguous"):
+        print(f"discovery: not run (the verdict is {result.verdict}: nothing left to explain)")
+        return
+    from .diagnose.discover import discover_campaign
+
+    found = discover_campaign(
+        result.trials, result.friction, result.effects, workers=args.workers, scheduler=args.scheduler,
+        progress=progress,
+    )  # fmt: skip
+    print(found.format())
+    if found.terms:
+        note += f"; discovered {', '.join(t.key for t in found.terms)}"
+        _write_atomically(out, lambda p: p.write_text(model_to_yaml(result.friction, found.effects, comment=note)))
+        print(f"model file with the discovered terms: {out}")
 
 
 def cmd_reproduce(args) -> int:
@@ -1082,7 +1092,7 @@ def main(argv=None) -> int:
             "reproduce": cmd_reproduce,
         }[args.command](args)
     except Rc1Error as e:
-        print(f"rc1 {args.command}: error: {e}", file=sys.stderr)
+        print(f"rc1 {args.command}: error: {e}{_kept(args)}", file=sys.stderr)
         return 2
     except OSError as e:
         print(f"rc1 {args.command}: error: {e.filename or ''}: {e.strerror}", file=sys.stderr)
@@ -1105,9 +1115,14 @@ def _first_line(error: BaseException) -> str:
     return text if len(text) <= 200 else text[:197] + "..."
 
 
+def _kept(args) -> str:
+    """What a long command had written before it stopped."""
+    return f"; kept: {', '.join(args.kept)}" if args.kept else ""
+
+
 def _kept_and_resume(args) -> str:
     """What the command had written, and how to go on from its checkpoint."""
-    kept = f"; kept: {', '.join(args.kept)}" if args.kept else ""
+    kept = _kept(args)
     resumes = args.command in ("identify", "diagnose", "sweep")
     return kept + ("; run the same command again to resume from its checkpoint" if resumes else "")
 

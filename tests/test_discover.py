@@ -59,3 +59,32 @@ def test_a_campaign_without_a_hidden_effect_gets_no_term(tmp_path):
     assert not found.terms, found.format()
     assert "no term earns its place" in found.format()
     assert np.isfinite(found.cost_without)
+
+
+def test_a_discovery_that_fails_keeps_the_diagnosis_and_names_it(tmp_path, monkeypatch, capsys):
+    """rc1 diagnose --discover runs discovery last: when it stops with an error, the diagnosis's model file is
+    written and the one-line error says so."""
+    import rc1_drake.diagnose as diagnose_package
+    import rc1_drake.diagnose.discover as discover_module
+    from rc1_drake.cli import main
+    from rc1_drake.config import Rc1Error
+
+    class Diagnosed:
+        verdict, friction, effects, trials = "unexplained", Friction(), {"wheel_toe_deg": 1.0}, []
+        simulations, resumed, wall_s = 0, 0, 0.0
+
+        def format(self):
+            return "verdict: unexplained"
+
+    def fails(*args, **kwargs):
+        raise Rc1Error("discovery: every run failed")
+
+    monkeypatch.setattr(diagnose_package, "diagnose", lambda *args, **kwargs: Diagnosed())
+    monkeypatch.setattr(discover_module, "discover_campaign", fails)
+    out = tmp_path / "model.yaml"
+    code = main(
+        ["diagnose", "data/paper_campaign", "--discover", "--out", str(out), "--checkpoint", str(tmp_path / "c")]
+    )
+    assert code == 2 and "wheel_toe_deg: 1\n" in out.read_text()
+    (line,) = capsys.readouterr().err.strip().splitlines()
+    assert line == f"rc1 diagnose: error: discovery: every run failed; kept: the diagnosis's model in {out}"
