@@ -1,7 +1,8 @@
 """How often a diagnosis is right on the paper's design (issue 42): a confusion table over seeded campaigns.
 
     python benchmarks/paper_rates.py [--seeds 100-105] [--cells CELL,...] [--trials-per-case 2] [--workers 2]
-                                     [--variant default|keep-replay-error] [--out benchmarks/out/paper_rates]
+                                     [--variant default|keep-replay-error|paired-replay-error]
+                                     [--out benchmarks/out/paper_rates]
                                      [--markdown] [--table-only]
 
 Every campaign has the paper's design (section 4, Table 2): `--trials-per-case` trials each of no failure, J7, J13
@@ -49,7 +50,11 @@ PAGE, BLOCK, WRITER = REPO_ROOT / "docs" / "diagnosis.md", "paper-rates-table", 
 README, SUMMARY = REPO_ROOT / "README.md", "paper-rates-summary"
 J7_BIAS_DEG = next(c.bias_deg for c in PAPER_DESIGN if c.bias_deg)
 # Cheaper configurations of the diagnosis, judged against the default on the same campaigns (issue 42 item 2).
-VARIANTS = {"default": {}, "keep-replay-error": {"remeasure_replay_error": False}}
+VARIANTS = {
+    "default": {},
+    "keep-replay-error": {"replay_error": "start"},
+    "paired-replay-error": {"replay_error": "paired"},
+}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -182,6 +187,9 @@ def one(cell: Cell, seed: int, args) -> dict:
         "ambiguous_between": list(result.rounds[-1].ambiguous) if result.rounds else [],
         "partial": [r.partial for r in result.rounds if r.partial],
         "final_effects": result.effects,
+        "free_friction": result.free,
+        "final_friction": dataclasses.asdict(result.friction),
+        "steps": [w["model"] for w in result.waterfall],
         "simulations": result.simulations,
         "wall_s": time.perf_counter() - started,
     }

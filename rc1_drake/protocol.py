@@ -126,6 +126,9 @@ class Run:
         if self.event_t is None:
             return self
         keep = self.t < self.event_t - 1e-12
+        # The servos' torque at the first log at or past the event; the last log where the event came after it
+        # (a run through its event may reach it in the steps past its last log).
+        at_event = min(int(np.searchsorted(self.t, self.event_t)), len(self.t) - 1)
         sensitivity = None
         if self.sensitivity is not None:
             sensitivity = np.concatenate([self.sensitivity[keep], self.event_sensitivity[None]])
@@ -133,7 +136,7 @@ class Run:
             self,
             t=np.append(self.t[keep], self.event_t),
             state=np.vstack([self.state[keep], self.event_state]),
-            servo_torque=np.vstack([self.servo_torque[keep], self.servo_torque[np.searchsorted(self.t, self.event_t)]]),
+            servo_torque=np.vstack([self.servo_torque[keep], self.servo_torque[at_event]]),
             sensitivity=sensitivity,
             event_t=None,
             event_state=None,

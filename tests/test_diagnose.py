@@ -26,13 +26,22 @@ from rc1_drake.diagnose import verdict as verdicts
 from rc1_drake.diagnose.coordinates import START, effect_coordinates, friction_coordinates, model_at
 from rc1_drake.diagnose.decide import decide
 from rc1_drake.diagnose.fit import bounded_least_squares, fit
-from rc1_drake.diagnose.linearize import Linearization, trial_weights
+from rc1_drake.diagnose.linearize import (
+    PAIRED_DRAWS,
+    Linearization,
+    linearize,
+    relinearize,
+    trial_weights,
+    with_replay_error,
+)
+from rc1_drake.diagnose.loop import searched_friction
 from rc1_drake.diagnose.replays import evaluate
 from rc1_drake.diagnose.report import CandidateResult, HeldOutScore, Round
 from rc1_drake.diagnose.significance import Misfit, final_misfit, misfit, subspace_cosine
 from rc1_drake.effects import LIBRARY, Effect, EffectParameter, register
 from rc1_drake.measurements import Trial, load_campaign
 from rc1_drake.synthesize import Case, Noise, noise_free_twin, synthesize_campaign
+from rc1_drake.sysid.evaluate import Evaluator
 from rc1_drake.sysid.input_noise import replay_error
 from rc1_drake.sysid.parameters import Parameter
 from rc1_drake.sysid.stats import wald_p
@@ -455,17 +464,51 @@ def test_a_visible_hidden_effect_is_ranked_first_accepted_and_recovered(
 
 
 @pytest.mark.slow
-def test_keeping_the_replay_error_of_the_start_saves_its_bootstraps_and_finds_the_same_toe(tmp_path):
-    """The cheaper variant (remeasure_replay_error=False, judged at scale by benchmarks/paper_rates.py --variant):
-    the same toe accepted, its interval holding the truth, without the bootstraps at the accepted and polished
-    models (each the trials' noise-free twins and their draws)."""
+@pytest.mark.parametrize("mode", ["start", "paired"])
+def test_a_cheaper_replay_error_saves_bootstraps_and_finds_the_same_toe(tmp_path, mode):
+    """The cheaper variants (replay_error "start" or "paired", judged at scale by benchmarks/paper_rates.py
+    --variant): the same toe accepted, its interval holding the truth, with fewer replays for the replay's own
+    error at the accepted and polished models (none, or linearize.PAIRED_DRAWS of the start's draws a trial)."""
     campaign = _campaign(tmp_path, {"wheel_toe_deg": 1.5})
-    options = dict(candidates=["wheel_toe", "head_drag"], input_noise_samples=2, max_rounds=1)
-    full, kept = _diagnose(campaign, **options), _diagnose(campaign, remeasure_replay_error=False, **options)
-    assert full.accepted == kept.accepted == ["wheel_toe"]
-    value, se = kept.final_coordinates["wheel_toe_deg"]
+    samples = PAIRED_DRAWS + 1
+    options = dict(candidates=["wheel_toe", "head_drag"], input_noise_samples=samples, max_rounds=1)
+    full, cheap = _diagnose(campaign, **options), _diagnose(campaign, replay_error=mode, **options)
+    assert full.accepted == cheap.accepted == ["wheel_toe"]
+    value, se = cheap.final_coordinates["wheel_toe_deg"]
     assert abs(value - 1.5) < Z95 * se
-    assert kept.simulations <= full.simulations - len(campaign.trials) * (2 + 1)  # one bootstrap at least
+    saved = samples + 1 if mode == "start" else samples - PAIRED_DRAWS  # a trial's, at the accepted model at least
+    assert cheap.simulations <= full.simulations - len(campaign.trials) * saved
+
+
+def test_where_no_friction_is_identified_the_search_walks_toward_the_data(tmp_path):
+    """Data made with half the paper's lateral Coulomb friction: the paper's own search (one coefficient at a time)
+    from the paper's values moves mu_lat toward the truth and lowers the diagnosis's sum of squares."""
+    truth = 0.5 * Friction().mu_lat
+    synthesize_campaign(tmp_path, design=[Case([], 1), Case([7], 1)], seed=3, friction=dataclasses.replace(
+        Friction(), mu_lat=truth), stop=Stop(line_x_m=None, revolutions=None, time_limit_s=1.5))  # fmt: skip
+    trials, evaluator = load_campaign(tmp_path).trials, Evaluator(None)
+    others = [n for n in FRICTION_NAMES if n != "mu_lat"]
+    lin = linearize(trials, Friction(), {}, [], evaluator, noise=[np.zeros((0, 0))] * len(trials), held=others)
+    found = searched_friction(lin, ["mu_lat"], evaluator)
+    assert found is not None and truth <= found.mu_lat < Friction().mu_lat
+    assert dataclasses.replace(found, mu_lat=Friction().mu_lat) == Friction()  # only what was searched moved
+
+
+def test_a_paired_replay_error_at_the_same_model_is_the_full_one(tmp_path):
+    """Common random numbers: measured again at the model of the full measurement, the paired draws are its own
+    first draws, so the paired bias is the full one exactly; at another model it moves."""
+    campaign = _campaign(tmp_path, {}, design=[Case([], 1)], seconds=1.0)
+    evaluator = Evaluator(None)
+    samples = PAIRED_DRAWS + 1
+    full = linearize(campaign.trials, Friction(), {}, [], evaluator, input_noise_samples=samples, held=FRICTION_NAMES)
+    again = with_replay_error(full, evaluator, samples, paired=True)
+    assert evaluator.simulations == (1 + 1 + samples) + (1 + PAIRED_DRAWS)  # replay, twin, draws; twin, paired draws
+    for a, b in zip(full.bias + full.start_bias, again.bias + again.start_bias, strict=True):
+        np.testing.assert_array_equal(a, b)
+    assert again.noise is full.noise
+    other = dataclasses.replace(Friction(), mu_lat=1.0)
+    elsewhere = relinearize(full, other, {}, evaluator, samples=samples, paired=True)
+    assert np.linalg.norm(elsewhere.bias[0] - full.bias[0]) > 0
 
 
 # On these short trials a hidden head drag is explained about as well by a tilt or a longitudinal asymmetry,

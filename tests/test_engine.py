@@ -21,7 +21,7 @@ from rc1_drake.engine.dynamics import chain_terms, plant_numbers
 from rc1_drake.engine.session import CompiledSession
 from rc1_drake.measurements import load_trial
 from rc1_drake.model import add_rc1_plant, set_payload
-from rc1_drake.protocol import Session
+from rc1_drake.protocol import Run, Session
 from rc1_drake.replay import Replayer
 
 HORIZON_S = 2.0  # long enough for every effect to show; the Drake runs keep the file to about a minute
@@ -128,6 +128,20 @@ def test_log_periods_that_are_not_a_multiple_of_the_step_agree():
     drake, compiled = both(short(every_step, 0.05))
     assert len(drake.t) == 51
     np.testing.assert_allclose(compiled.state, drake.state, atol=1e-9)  # step by step: the same arithmetic
+
+
+def test_a_run_whose_event_comes_after_its_last_log_closes_with_it():
+    """A run through its stop event can reach it in the steps past its last log (seen at a diagnosis's final
+    model, where scoring the run crashed): the run as the experiment saw it ends at the event, with the last
+    logged torques."""
+    t = np.array([0.0, 0.01, 0.02])
+    run = Run(Scenario(), t, np.zeros((3, 32)), np.arange(39.0).reshape(3, 13), "crossed", 0.0, None,
+              event_t=0.025, event_state=np.ones(32))  # fmt: skip
+    seen = run.until_event()
+    np.testing.assert_array_equal(seen.t, [0.0, 0.01, 0.02, 0.025])
+    np.testing.assert_array_equal(seen.state[-1], np.ones(32))
+    np.testing.assert_array_equal(seen.servo_torque[-1], run.servo_torque[-1])
+    assert seen.event_t is None and seen.final_head_xy.tolist() == [1.0, 1.0]
 
 
 def test_runs_through_their_stop_event_agree():

@@ -128,10 +128,18 @@ def library_coordinates() -> list[str]:
 
 
 def discover(
-    trials, friction: Friction, effects: dict, *, evaluator: Evaluator | None = None, sizes=SIZES
+    trials,
+    friction: Friction,
+    effects: dict,
+    *,
+    evaluator: Evaluator | None = None,
+    sizes=SIZES,
+    min_fall=MIN_FALL,
+    min_gain=MIN_GAIN,
 ) -> Discovery:
     """The discrepancy model fitted to `trials` at the model (`friction`, `effects`), on their residuals with the
-    replay's own miss on the model's motion taken off (corrected_residual)."""
+    replay's own miss on the model's motion taken off (corrected_residual); terms only where they remove `min_fall`
+    and `min_gain` of the held-out cost (0 and 0: always the sparse model's best, for benchmarks/discovery.py)."""
     evaluator = evaluator or Evaluator(None)
     start = evaluator.simulations
     keys, library = discrepancy_keys(trials), library_coordinates()
@@ -144,7 +152,7 @@ def discover(
     columns = [p[1][:, : len(keys)] for p in parts]
     library_columns = np.vstack([p[1][:, len(keys) :] for p in parts])
     path, cost_without = _sparsity_path(r, columns, sizes)
-    chosen = _choose(path, cost_without)
+    chosen = _choose(path, cost_without, min_fall, min_gain)
     if chosen is None:
         spent = evaluator.simulations - start
         return Discovery([], path, float(cost_without.sum()), 0.0, 0.0, dict(effects), spent)
@@ -227,15 +235,21 @@ def _sparsity_path(r, columns, sizes) -> tuple:
     return path, cost_without
 
 
-def _choose(path, cost_without):
-    """The fewest terms within a standard error of the best held-out cost, if the best removes MIN_FALL of the
-    held-out cost without terms and at least MIN_GAIN of it; else None."""
+def best_gain(path, cost_without) -> float:
+    """What the sparse model with the best held-out cost removes of the held-out cost without terms."""
+    with_terms = [p for p in path if p["support"]]
+    return max((float(np.sum(cost_without) - p["held"].sum()) for p in with_terms), default=0.0)
+
+
+def _choose(path, cost_without, min_fall, min_gain):
+    """The fewest terms within a standard error of the best held-out cost, if the best removes `min_fall` of the
+    held-out cost without terms and at least `min_gain` of it; else None."""
     with_terms = [p for p in path if p["support"]]
     if not with_terms:
         return None
     best = min(with_terms, key=lambda p: p["held"].sum())
-    gain = float(cost_without.sum() - best["held"].sum())
-    if gain < MIN_GAIN or gain < MIN_FALL * cost_without.sum():
+    gain = best_gain(path, cost_without)
+    if gain < min_gain or gain < min_fall * cost_without.sum():
         return None
     gain_per_trial = cost_without - best["held"]
     limit = best["held"].sum() + math.sqrt(len(gain_per_trial)) * gain_per_trial.std(ddof=1)

@@ -183,10 +183,10 @@ POLISH_STEPS = 3  # Gauss-Newton steps on an accepted model, while simulation co
 POLISH_TOLERANCE = 0.5  # ... and while the accepted effect's step exceeds this many standard errors
 
 
-def polish(lin: Linearization, names: list[str], effect: str, evaluator, samples: int) -> tuple:
+def polish(lin: Linearization, names: list[str], effect: str, evaluator, samples: int, paired=False) -> tuple:
     """The accepted model moved by Gauss-Newton steps over `names` (secant columns, each step within the trust
-    region, the replay's own error measured again at each point with `samples` draws) while the replays there
-    lower the weighted sum of squares and `effect`'s own step exceeds POLISH_TOLERANCE standard errors.
+    region, the replay's own error measured again at each point with `samples` draws, or `paired` ones) while the
+    replays there lower the weighted sum of squares and `effect`'s own step exceeds POLISH_TOLERANCE standard errors.
     Acceptance was decided at the bounded refined fit; this only estimates. Measured (3 s `none,J7x2`, seed
     0): a failed joint's 0.6 N m dry friction accepted at 0.40, two trust steps from 0, outside its interval;
     the replays with their own miss taken off fit best at 0.6, but with the miss measured at 0.4 at 0.45-0.48,
@@ -196,7 +196,8 @@ def polish(lin: Linearization, names: list[str], effect: str, evaluator, samples
         own = [i for i, n in enumerate(step.names) if lin.coordinate(n).owner == effect]
         if all(abs(step.steps[i]) <= POLISH_TOLERANCE * step.standard_errors[i] for i in own):
             break
-        there = moved(lin, names, step.values, evaluator, what=f"polishing {effect} ({k + 1})", samples=samples)
+        what = f"polishing {effect} ({k + 1})"
+        there = moved(lin, names, step.values, evaluator, what=what, samples=samples, paired=paired)
         if lin.weighted_sum_of_squares(there.r0) >= lin.weighted_sum_of_squares(lin.r0):  # both with lin's weights
             break
         lin = there

@@ -27,6 +27,10 @@ from .coordinates import (
 from .replays import INPUT_NOISE_SAMPLES, evaluate
 
 FINAL_SIGMA_M = RESIDUAL_SIGMAS["final_m"]
+# Draws a paired measurement of the replay's own error repeats (same noise as the full one's first draws): the bias
+# moves by 1.6-4.9 standardized units on a J7 trial from the paper's model to a 2 deg toe or mu_lat -20%, and the
+# paired difference of two draws follows it to 0.05-0.55, about the full six draws' own standard error (0.1-0.5).
+PAIRED_DRAWS = 2
 
 
 @dataclasses.dataclass
@@ -46,6 +50,9 @@ class Linearization:
     w0: list[np.ndarray] | None = None
     wcolumns: dict[str, list[np.ndarray]] | None = None
     start_bias: list[np.ndarray] | None = None  # per trial: the replay's own miss on its start rows
+    # per trial, the last full replay_errors: its first PAIRED_DRAWS draws (residuals, start rows), its bias and start
+    # bias; a paired measurement repeats only those draws and moves that bias by the difference (replay_errors)
+    draws: list[tuple] | None = None
 
     def __post_init__(self):
         if self.weights is None:
@@ -141,9 +148,9 @@ def linearize(
                 jobs.append((starts_at(trials, coords, values)[k] if c.start_of else t, *model))
                 where.append((c.name, k))
     outputs = evaluator.map(evaluate, jobs, f"linearizing at the model ({len(coords)} directions)")
-    bias = start_bias = None
+    bias = start_bias = draws = None
     if noise is None:
-        bias, noise, start_bias = replay_errors(trials, friction, effects, evaluator, input_noise_samples)
+        bias, noise, start_bias, draws = replay_errors(trials, friction, effects, evaluator, input_noise_samples)
     columns = {c.name: [np.zeros(len(b[0])) for b in base] for c in coords}
     wcolumns = {c.name: [np.zeros(len(b[3])) for b in base] for c in coords}
     for (name, k), o in zip(where, outputs, strict=True):  # residuals have the trial's entries at every model
@@ -164,35 +171,60 @@ def linearize(
         w0=[b[3] for b in base],
         wcolumns=wcolumns,
         start_bias=start_bias,
+        draws=draws,
     )
     lin.r0 = [lin.corrected(k, r) for k, r in enumerate(lin.r0)]
     lin.w0 = [lin.start_corrected(k, w) for k, w in enumerate(lin.w0)]
     return lin
 
 
-def replay_errors(trials, friction, effects, evaluator: Evaluator, samples: int) -> tuple:
+def replay_errors(trials, friction, effects, evaluator: Evaluator, samples: int, paired_with=None) -> tuple:
     """Per trial, the replay's bias, its input-noise covariance (replay_error) and the bias of its start rows, at
-    (friction, effects)."""
+    (friction, effects), and the first PAIRED_DRAWS draws. `paired_with`: a Linearization whose measurement this
+    one is paired with: only the first draws of its last full measurement are replayed (the same noise, on this
+    model's twins), and that measurement's bias and start bias moved by their mean difference; its covariance kept.
+    The paired difference is precise where a full measurement's mean is not (common random numbers)."""
+    count = min(samples, PAIRED_DRAWS) if paired_with is not None else samples
     # Twins first, then every draw a job of its own: a campaign of a few trials keeps every core busy.
     twins = evaluator.map(
         bootstrap_twin, [(t, friction, effects) for t in trials], "the replays' own error: noise-free twins"
     )
-    jobs = [(*made, friction, effects, k, i) for k, made in enumerate(twins) for i in range(samples)]
-    draws = iter(evaluator.map(bootstrap_draw, jobs, "the replays' own error: the twins replayed with noisy angles"))
-    errors = [draws_mean_and_covariance([next(draws) for _ in range(samples)]) for _ in twins]
+    jobs = [(*made, friction, effects, k, i) for k, made in enumerate(twins) for i in range(count)]
+    what = "the replays' own error: the twins replayed with noisy angles" + (" (paired)" if paired_with else "")
+    out = iter(evaluator.map(bootstrap_draw, jobs, what))
+    drawn = [[next(out) for _ in range(count)] for _ in twins]
+    firsts = [tuple(np.array([d[part] for d in ds[:PAIRED_DRAWS]]) for part in (0, 1)) for ds in drawn]
+    if paired_with is not None:
+        moved_by = [
+            (b + (r - ref_r[: len(r)]).mean(axis=0), s + (w - ref_w[: len(w)]).mean(axis=0))
+            for (r, w), (ref_r, ref_w, b, s) in zip(firsts, paired_with.draws, strict=True)
+        ]
+        return [m[0] for m in moved_by], paired_with.noise, [m[1] for m in moved_by], paired_with.draws
+    errors = [draws_mean_and_covariance(ds) for ds in drawn]
     # The bias is a mean of `samples` draws: taking it off adds 1 / samples of their covariance.
-    return [e[0] for e in errors], [e[1] * (1.0 + 1.0 / samples) for e in errors], [e[2] for e in errors]
+    bias, start = [e[0] for e in errors], [e[2] for e in errors]
+    draws = [(*first, b, s) for first, b, s in zip(firsts, bias, start, strict=True)]
+    return bias, [e[1] * (1.0 + 1.0 / samples) for e in errors], start, draws
 
 
-def with_replay_error(lin: Linearization, evaluator: Evaluator, samples: int) -> Linearization:
+def with_replay_error(lin: Linearization, evaluator: Evaluator, samples: int, paired: bool = False) -> Linearization:
     """`lin` with the replay's bias and input noise measured again at its model (their residuals moved
-    from the old bias to the new one, the trial weights recomputed)."""
-    bias, noise, start_bias = replay_errors(lin.trials, lin.friction, lin.effects, evaluator, samples)
+    from the old bias to the new one, the trial weights recomputed); `paired`: by the paired draws (replay_errors)."""
+    bias, noise, start_bias, draws = replay_errors(
+        lin.trials, lin.friction, lin.effects, evaluator, samples, lin if paired and lin.draws else None
+    )
     old_bias, old_start = lin.bias or [None] * len(lin.r0), lin.start_bias or [None] * len(lin.w0)
     r0 = [r + _moved_bias(before, after) for r, before, after in zip(lin.r0, old_bias, bias, strict=True)]
     w0 = [w + _moved_bias(before, after) for w, before, after in zip(lin.w0, old_start, start_bias, strict=True)]
     return dataclasses.replace(
-        lin, r0=r0, bias=bias, noise=noise, weights=trial_weights(lin.trials, noise), w0=w0, start_bias=start_bias
+        lin,
+        r0=r0,
+        bias=bias,
+        noise=noise,
+        weights=trial_weights(lin.trials, noise),
+        w0=w0,
+        start_bias=start_bias,
+        draws=draws,
     )
 
 
@@ -214,20 +246,35 @@ def moved(lin: Linearization, names: list[str], values, evaluator, **kwargs) -> 
 
 
 def relinearize(
-    lin: Linearization, friction, effects, evaluator, what="residuals at the new model", samples=0, trials=None
+    lin: Linearization,
+    friction,
+    effects,
+    evaluator,
+    what="residuals at the new model",
+    samples=0,
+    trials=None,
+    paired=False,
 ) -> Linearization:
     """The residuals at the new model; the columns updated by Broyden's rank-one secant update along the
     step (no replays: the columns of the coordinates that moved become secants through both points, so
     a nonlinear response is followed); the replay's bias and input noise reused, or with `samples`
-    measured again at the new model (replay_error) before the update, so that the secants follow the
-    residuals with the replay's own miss taken off. `trials`: the trials with their starts at the new model."""
+    measured again at the new model (replay_error; `paired`: by the paired draws) before the update, so that the
+    secants follow the residuals with the replay's own miss taken off. `trials`: the trials with their starts at the
+    new model."""
     trials = list(trials or lin.trials)
     out = evaluator.map(evaluate, [(t, friction, effects) for t in trials], what)
     target = lin
     if samples:
-        bias, noise, start_bias = replay_errors(trials, friction, effects, evaluator, samples)
+        bias, noise, start_bias, draws = replay_errors(
+            trials, friction, effects, evaluator, samples, lin if paired and lin.draws else None
+        )
         target = dataclasses.replace(
-            lin, bias=bias, noise=noise, weights=trial_weights(lin.trials, noise), start_bias=start_bias
+            lin,
+            bias=bias,
+            noise=noise,
+            weights=trial_weights(lin.trials, noise),
+            start_bias=start_bias,
+            draws=draws,
         )
     values = coordinate_values(lin.coordinates, friction, effects, trials)
     step = np.array(values) - np.array([c.value for c in lin.coordinates])

@@ -9,6 +9,7 @@ from ..compare import CampaignReport
 from ..config import FRICTION_NAMES, START_MODES, Friction
 from ..effects import LIBRARY, active, candidate_names, potentiometer_faults
 from ..executor import make_executor
+from ..identify.avs import avs
 from ..residuals import where_it_fails
 from ..sysid.evaluate import Checkpoint, Evaluator
 from ..sysid.residual import trial_residual
@@ -18,13 +19,15 @@ from .decide import decide, held_out_by_simulation, rank, screen_friction, unref
 from .fit import fit, polish, starts_fitted
 from .linearize import Linearization, linearize, moved, with_replay_error
 from .probe import suggest_experiments
-from .replays import INPUT_NOISE_SAMPLES, replay_and_score
+from .replays import INPUT_NOISE_SAMPLES, evaluate, replay_and_score
 from .report import Diagnosis, Round, waterfall_step
 from .significance import misfit
 from .thresholds import THRESHOLDS, Thresholds
 from .verdict import verdict
 
 MAX_ROUNDS = 3
+REPLAY_ERROR_MODES = ("full", "paired", "start")
+FAR_LABEL = "today's model, friction searched (none identified at the start)"
 REFINED_CANDIDATES = 3  # the best candidates by the linear ranking, refined by a secant step before the checks
 CHECKED_CANDIDATES = 2  # of those, the best significant ones checked by simulation on held-out trials
 
@@ -47,7 +50,7 @@ def diagnose(
     thresholds: Thresholds = THRESHOLDS,
     checkpoint=None,
     on_round=None,
-    remeasure_replay_error=True,
+    replay_error="full",
 ) -> Diagnosis:
     """The loop (the package's docstring) on `campaign` (its `trials`, all by default), from the model (`friction`,
     `effects`); `candidates` are effect names or groups (effects.candidate_names; by default the physical effects,
@@ -57,12 +60,15 @@ def diagnose(
     START_FIT_S, for data whose start follows no known convention. `checkpoint`: a folder where every replay's result
     is kept as it arrives; a diagnosis interrupted and run again with it resumes where it stopped. `on_round(friction,
     effects, accepted)`: called with the model after each round that accepted an effect (so that a caller keeps it
-    whatever follows). `remeasure_replay_error`: measure the replay's own error again at each accepted and polished
-    model (docs/diagnosis.md), or keep the start's, a variant that saves those bootstraps (benchmarks/paper_rates.py
-    --variant judges it campaign by campaign)."""
+    whatever follows). `replay_error`: at each accepted and polished model the replay's own error is measured again
+    ("full", docs/diagnosis.md); at the polished ones moved from the accepted model's by the paired difference of
+    its first draws ("paired": linearize.PAIRED_DRAWS of six); or the start's kept ("start"). The cheaper two are
+    judged campaign by campaign by benchmarks/paper_rates.py --variant."""
     started = time.perf_counter()
     if start_rates not in START_MODES:
         raise ValueError(f"start_rates must be one of {START_MODES}, got {start_rates!r}")
+    if replay_error not in REPLAY_ERROR_MODES:
+        raise ValueError(f"replay_error must be one of {REPLAY_ERROR_MODES}, got {replay_error!r}")
     friction, effects, chosen = friction or Friction(), dict(effects or {}), campaign.chosen(trials)
     replayed, unseen = _candidates(chosen, effects, candidates)
     with make_executor(workers=workers or min(os.cpu_count() or 1, len(chosen)), scheduler=scheduler) as executor:
@@ -79,7 +85,7 @@ def diagnose(
             starts=fit_starts,
         )
         search = _Search.begin(lin, evaluator, chosen, replayed, held, input_noise_samples, thresholds)
-        search.remeasure = remeasure_replay_error
+        search.replay_error = replay_error
         search.stop_reason = f"{max_rounds} rounds"
         for index in range(max_rounds):
             if not search.round(index):
@@ -113,6 +119,22 @@ def _candidates(trials, effects, candidates) -> tuple:
     return [n for n in names if LIBRARY[n].seen_in_replay and n not in in_model], unseen
 
 
+def searched_friction(lin: Linearization, names: list[str], evaluator) -> Friction | None:
+    """Where the screen at the start identifies no coefficient, it judged far from where the data are (seen: mu_lat
+    0.6 in the data, 1.5 at the start, none identified, the start's values kept; the linear fit there goes to the
+    bounds, mu_lat to 5). The paper's own search (AVS: one coefficient at a time over a few candidates, identify.avs)
+    walks the friction down the diagnosis's weighted sum of squares, one pass over `names`: the friction it found,
+    or None where it found nothing better."""
+
+    def cost(friction: Friction) -> float:
+        out = evaluator.map(evaluate, [(t, friction, lin.effects) for t in lin.trials], "searching the friction")
+        return lin.weighted_sum_of_squares([lin.corrected(k, o[0]) for k, o in enumerate(out)])
+
+    searched = avs(cost, start=lin.friction, iterations=len(names), parameters=[lin.coordinate(n) for n in names])
+    better = searched.iterations and searched.iterations[-1].error < searched.start_error
+    return searched.iterations[-1].friction if better else None
+
+
 @dataclasses.dataclass
 class _Search:
     """One diagnosis between rounds: today's linearized model, what every fit includes, what was accepted."""
@@ -130,34 +152,35 @@ class _Search:
     accepted: list[str] = dataclasses.field(default_factory=list)
     rounds: list[Round] = dataclasses.field(default_factory=list)
     stop_reason: str = ""
-    remeasure: bool = True  # the replay's own error measured again at each accepted and polished model
+    replay_error: str = "full"  # at each accepted and polished model: one of REPLAY_ERROR_MODES
 
     @classmethod
     def begin(cls, lin, evaluator, trials, replayed, held, samples, thresholds) -> "_Search":
-        """The search at the start: the friction these data identify, the trials' starts fitted with it."""
+        """The search at the start: the friction these data identify (where none is at the start, judged again
+        where a search of the friction goes: searched_friction), the trials' starts fitted with it."""
         nuisance = [c.name for c in lin.coordinates if c.owner == START]
-        free = screen_friction(lin, [n for n in FRICTION_NAMES if n not in held], nuisance=nuisance)
+        names = [n for n in FRICTION_NAMES if n not in held]
+        free = screen_friction(lin, names, nuisance=nuisance)
         lin = starts_fitted(lin, nuisance, free, evaluator)
         start = unrefitted(lin, "start (no refit)")
-        step = {
-            "model": start.label,
-            "effects": start.effects,
-            "mean_eq6_error_pct": start.mean_eq6(),
-            "mean_eq6_without_replay_miss_pct": start.mean_eq6_without_miss(),
-            "cases": start.by_case(trials),
-        }
-        return cls(
-            lin,
-            evaluator,
-            trials,
-            replayed,
-            nuisance,
-            free,
-            nuisance + list(free),
-            samples,
-            thresholds,
-            waterfall=[step],
-        )
+        waterfall = [
+            {
+                "model": start.label,
+                "effects": start.effects,
+                "mean_eq6_error_pct": start.mean_eq6(),
+                "mean_eq6_without_replay_miss_pct": start.mean_eq6_without_miss(),
+                "cases": start.by_case(trials),
+            }
+        ]
+        found = searched_friction(lin, names, evaluator) if names and not free else None
+        if found is not None:  # linearized again where the search went, and judged there
+            lin = linearize(lin.trials, found, lin.effects, replayed, evaluator, input_noise_samples=samples,
+                            held=held, starts=bool(nuisance))  # fmt: skip
+            free = screen_friction(lin, names, nuisance=nuisance)
+            lin = starts_fitted(lin, nuisance, free, evaluator)
+            waterfall.append(waterfall_step(FAR_LABEL, unrefitted(lin, FAR_LABEL), trials))
+        model_names = nuisance + list(free)
+        return cls(lin, evaluator, trials, replayed, nuisance, free, model_names, samples, thresholds, waterfall)
 
     def label(self) -> str:
         return "today's model" if not self.accepted else "+ " + " + ".join(self.accepted)
@@ -279,10 +302,12 @@ class _Search:
         # the refit's step; that step is small, and the next round refits from there).
         lin = moved(at, cand_fit.names, cand_fit.values, self.evaluator)
         # The replay's own error depends on the model: measured again at the accepted one (docs/diagnosis.md).
-        if self.remeasure:
+        remeasure, paired = self.replay_error != "start", self.replay_error == "paired"
+        if remeasure:  # in full: the input noise's covariance moves with the model too (paired keeps it)
             lin = with_replay_error(lin, self.evaluator, self.samples)
         accepted_at = {n: lin.coordinate(n).value for n in c.coordinates}
-        lin, steps = polish(lin, self.model_names, c.name, self.evaluator, self.samples if self.remeasure else 0)
+        samples = self.samples if remeasure else 0
+        lin, steps = polish(lin, self.model_names, c.name, self.evaluator, samples, paired=paired)
         here = fit(lin, self.model_names)  # the accepted effect's interval, the replay's error measured there
         self.rounds[-1].polished = (
             f"{steps} Gauss-Newton step(s) from " + ", ".join(f"{n}={v:.3g}" for n, v in accepted_at.items())

@@ -1,0 +1,186 @@
+"""How often discovery names what the model is missing (issue 43 item 4): seeded campaigns with an effect hidden
+that the model discovery starts from lacks.
+
+    python benchmarks/discovery.py [--seeds 0-5] [--calibrate 0-2] [--cells CELL,...] [--workers 2]
+                                   [--out benchmarks/out/discovery] [--markdown] [--table-only]
+
+Every campaign: two no-failure and two joint-7 trials of 2 s, with the synthesizer's sensor noise and start spread,
+made by this model or by reference.py (another model: kinematic joints, its own limits; it can hide only the toe).
+Hidden: nothing; a constant torque in the failed joint; a sideways force at the head proportional to its rolling
+speed; the rear wheels (modules 11-14) with half the lateral viscous friction; a tether dragging the tail (a
+Coulomb force at its end: the `study` effect, a shape the term library has); a wheel toe (a library effect the
+model lacks: its force pattern must come back). A floor seam (a force at a fixed place) is in neither the truth
+models nor the term library: not measured.
+
+Discovery (diagnose/discover.py) runs from the paper's model with the truth's friction, with its gate open
+(min_fall = min_gain = 0), so each campaign's best sparse model is refined, checked by replaying each trial with
+terms fitted without it, and recorded with its held-out gain; the gate is applied afterwards. Its two thresholds
+are chosen on the --calibrate seeds (MIN_FALL kept; MIN_GAIN the smallest at or above the shipped one that gives
+no calibration null a term) and the rates are reported on the other seeds, at the chosen and at the shipped
+thresholds. Scored per campaign: whether a term is reported, and whether one is the right one (right place, right
+variable, right sign: RIGHT), and how much of the held-out error the terms remove (by replay). Rows stream to
+OUT/rows.jsonl (a rerun resumes); --markdown writes the table into docs/diagnosis.md.
+"""
+
+import argparse
+import dataclasses
+import json
+import time
+from pathlib import Path
+
+from calibrate import seeds as parse_seeds  # benchmarks/ is on the path when this script runs
+from doc_blocks import REPO_ROOT, check_block, write_block
+
+from rc1_drake.config import Friction, Stop
+from rc1_drake.diagnose.discover import MIN_FALL, MIN_GAIN, best_gain, discover_campaign
+from rc1_drake.measurements import load_campaign
+from rc1_drake.synthesize import Case, synthesize_campaign
+
+PAGE, BLOCK, WRITER = REPO_ROOT / "docs" / "diagnosis.md", "discovery-rates-table", "benchmarks/discovery.py --markdown"
+DESIGN = [Case([], 2), Case([7], 2)]
+SECONDS = 2.0
+C_LAT = Friction().c_lat
+
+
+@dataclasses.dataclass(frozen=True)
+class Cell:
+    label: str
+    truth_model: str  # drake (this model) or reference
+    hidden: dict  # effect parameter key -> value
+    right: tuple  # (term key, sign) pairs a right answer names (any one of them); () for nothing
+
+
+CELLS = [
+    Cell("nothing", "drake", {}, ()),
+    Cell("failed joint's constant torque 0.2 N m", "drake", {"discrepancy_failed_joint_bias_Nm": 0.2},
+         (("discrepancy_failed_joint_bias_Nm", 1),)),
+    Cell("head: sideways force 3 N s/m x rolling speed", "drake", {"discrepancy_head_side_by_long_N_s_per_m": 3.0},
+         (("discrepancy_head_side_by_long_N_s_per_m", 1),)),
+    Cell("rear wheels: half the lateral viscous friction", "drake",
+         {"discrepancy_rear_drag_lat_N_s_per_m": -0.5 * C_LAT},
+         (("discrepancy_rear_drag_lat_N_s_per_m", -1), ("discrepancy_rear_dry_lat_N", -1))),
+    Cell("tail tether 1 N", "drake", {"tail_tether_N": 1.0},
+         tuple((f"discrepancy_tail_{k}", 1) for k in ("dry_long_N", "dry_lat_N", "drag_long_N_s_per_m",
+                                                         "drag_lat_N_s_per_m"))),
+    Cell("wheel toe 1.5 deg", "drake", {"wheel_toe_deg": 1.5},
+         tuple((f"discrepancy_{g}_side_by_long_N_s_per_m", 1) for g in ("front", "middle", "rear"))),
+    Cell("nothing (reference.py)", "reference", {}, ()),
+    Cell("wheel toe 1.5 deg (reference.py)", "reference", {"wheel_toe_deg": 1.5},
+         tuple((f"discrepancy_{g}_side_by_long_N_s_per_m", 1) for g in ("front", "middle", "rear"))),
+]  # fmt: skip
+
+
+def one(cell: Cell, seed: int, args) -> dict:
+    folder = args.out / "campaigns" / f"{cell.label.replace(' ', '_').replace('/', '_')}-{seed}"
+    if not folder.is_dir():
+        synthesize_campaign(folder, design=DESIGN, effects=cell.hidden, seed=seed, truth_model=cell.truth_model,
+                            stop=Stop(line_x_m=None, revolutions=None, time_limit_s=SECONDS))  # fmt: skip
+    started = time.perf_counter()
+    found = discover_campaign(load_campaign(folder).trials, Friction(), {}, workers=args.workers)
+    return {
+        "cell": cell.label,
+        "seed": seed,
+        "gain": best_gain(found.path, found.cost_without),
+        "cost_without": found.cost_without,
+        "terms": [{"key": t.key, "value": t.value, "se": t.standard_error, "words": t.words} for t in found.terms],
+        "fall": found.fall,
+        "simulations": found.simulations,
+        "wall_s": time.perf_counter() - started,
+    }
+
+
+def reported(row: dict, min_fall: float, min_gain: float) -> bool:
+    """Whether the gate (discover._choose's) lets the campaign's best sparse model through."""
+    return row["gain"] >= min_gain and row["gain"] >= min_fall * row["cost_without"]
+
+
+def is_right(row: dict, cell: Cell) -> bool:
+    return any(t["key"] == key and t["value"] * sign > 0 for t in row["terms"] for key, sign in cell.right)
+
+
+def chosen_gain(rows: list, calibration: set) -> float:
+    """The smallest MIN_GAIN at or above the shipped one that gives no null campaign among the calibration seeds a
+    term (MIN_FALL kept)."""
+    nulls = [r for r in rows if r["seed"] in calibration and not _cell(r).right and reported(r, MIN_FALL, 0.0)]
+    return max([MIN_GAIN] + [1.0001 * r["gain"] for r in nulls])
+
+
+def _cell(row: dict) -> Cell:
+    return next(c for c in CELLS if c.label == row["cell"])
+
+
+def table(rows: list, calibration: set, cells: list) -> tuple:
+    """(the markdown table on the reported seeds at the chosen and the shipped thresholds, its head)."""
+    gain = chosen_gain(rows, calibration)
+    shown = [r for r in rows if r["seed"] not in calibration]
+    lines = [
+        "| hidden | campaigns | a term reported (chosen / shipped gate) | the right term among them (chosen / "
+        "shipped) | held-out error removed, median (where reported) | gain of the best sparse model, median |",
+        "|---|---|---|---|---|---|",
+    ]
+    for cell in cells:
+        mine = [r for r in shown if r["cell"] == cell.label]
+        if not mine:
+            continue
+        cols = []
+        for g in (gain, MIN_GAIN):
+            on = [r for r in mine if reported(r, MIN_FALL, g)]
+            cols.append((len(on), sum(is_right(r, cell) for r in on)))
+        falls = sorted(r["fall"] for r in mine if reported(r, MIN_FALL, gain))
+        gains = sorted(r["gain"] for r in mine)
+        lines.append(
+            f"| {cell.label} | {len(mine)} | {cols[0][0]} / {cols[1][0]} | "
+            + (f"{cols[0][1]} / {cols[1][1]}" if cell.right else "-")
+            + f" | {f'{100 * falls[len(falls) // 2]:.0f}%' if falls else '-'} | {gains[len(gains) // 2]:.3g} |"
+        )
+    seeds = sorted({r["seed"] for r in shown})
+    head = (
+        f"Measured by `python benchmarks/discovery.py --markdown` (last run {time.strftime('%Y-%m-%d')}): "
+        f"{len(shown)} campaigns on seeds {', '.join(map(str, seeds)) or '-'}; the gate's MIN_GAIN chosen on seeds "
+        f"{', '.join(map(str, sorted(calibration)))} ({gain:.3g}; shipped {MIN_GAIN:g}), MIN_FALL {MIN_FALL:g}:"
+    )
+    return "\n".join(lines), head
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seeds", default="0-5")
+    parser.add_argument("--calibrate", default="0-2", help="the seeds that choose the gate (reported: the others)")
+    parser.add_argument("--cells", help="comma-separated cell labels (default: all)")
+    parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--out", type=Path, default=REPO_ROOT / "benchmarks" / "out" / "discovery")
+    parser.add_argument("--markdown", action="store_true", help="write the table into docs/diagnosis.md")
+    parser.add_argument("--table-only", action="store_true", help="print (and write) the table of the rows so far")
+    args = parser.parse_args()
+    known = {c.label: c for c in CELLS}
+    labels = args.cells.split(",") if args.cells else list(known)
+    if unknown := [c for c in labels if c not in known]:
+        raise SystemExit(f"--cells: unknown cell {unknown[0]!r} (known: {', '.join(known)})")
+    try:
+        seed_list, calibration = parse_seeds(args.seeds), set(parse_seeds(args.calibrate))
+    except ValueError:
+        raise SystemExit(f"--seeds/--calibrate: cannot read {args.seeds!r} / {args.calibrate!r} (e.g. 0-5)") from None
+    if args.markdown:
+        check_block(PAGE, BLOCK, WRITER)
+    args.out.mkdir(parents=True, exist_ok=True)
+    path = args.out / "rows.jsonl"
+    rows = [json.loads(line) for line in path.read_text().splitlines()] if path.exists() else []
+    done = {(r["cell"], r["seed"]) for r in rows}
+    jobs = [(known[c], s) for s in seed_list for c in labels if (c, s) not in done]
+    for n, (cell, seed) in enumerate([] if args.table_only else jobs):
+        row = one(cell, seed, args)
+        rows.append(row)
+        with path.open("a") as f:
+            f.write(json.dumps(row) + "\n")
+        terms = ", ".join(f"{t['key']}={t['value']:.3g}" for t in row["terms"]) or "none"
+        cost = f"{row['wall_s'] / 60:.1f} min, {row['simulations']} runs"
+        print(f"[{n + 1}/{len(jobs)}] {cell.label} seed {seed}: gain {row['gain']:.3g}, terms {terms}, fall "
+              f"{100 * row['fall']:.0f}% ({cost})", flush=True)  # fmt: skip
+    body, head = table(rows, calibration, [known[c] for c in labels])
+    print(head, body, sep="\n")
+    if args.markdown:
+        write_block(PAGE, BLOCK, WRITER, head + "\n\n" + body)
+
+
+if __name__ == "__main__":
+    main()
