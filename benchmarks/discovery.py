@@ -173,7 +173,7 @@ def main():
         with path.open("a") as f:
             f.write(json.dumps(row) + "\n")
         terms = ", ".join(f"{t['key']}={t['value']:.3g}" for t in row["terms"]) or "none"
-        cost = f"{row['wall_s'] / 60:.1f} min, {row['simulations']} runs"
+        cost = f"{row['wall_s'] / 60:.1f} min, {row['simulations']} jobs of ~100 runs"
         print(f"[{n + 1}/{len(jobs)}] {cell.label} seed {seed}: gain {row['gain']:.3g}, terms {terms}, fall "
               f"{100 * row['fall']:.0f}% ({cost})", flush=True)  # fmt: skip
     body, head = table(rows, calibration, [known[c] for c in labels])
