@@ -33,7 +33,7 @@ from calibrate import seeds as parse_seeds  # benchmarks/ is on the path when th
 from doc_blocks import REPO_ROOT, check_block, write_block
 
 from rc1_drake.config import Friction, Stop
-from rc1_drake.diagnose.discover import MIN_FALL, MIN_GAIN, best_gain, discover_campaign
+from rc1_drake.diagnose.discover import MIN_FALL, MIN_GAIN, best_gain, discover_campaign, passes_gate
 from rc1_drake.measurements import load_campaign
 from rc1_drake.synthesize import Case, synthesize_campaign
 
@@ -91,8 +91,8 @@ def one(cell: Cell, seed: int, args) -> dict:
 
 
 def reported(row: dict, min_fall: float, min_gain: float) -> bool:
-    """Whether the gate (discover._choose's) lets the campaign's best sparse model through."""
-    return row["gain"] >= min_gain and row["gain"] >= min_fall * row["cost_without"]
+    """Whether the gate (discover.passes_gate) lets the campaign's best sparse model through."""
+    return passes_gate(row["gain"], row["cost_without"], min_fall, min_gain)
 
 
 def is_right(row: dict, cell: Cell) -> bool:

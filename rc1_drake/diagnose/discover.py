@@ -134,12 +134,9 @@ def discover(
     *,
     evaluator: Evaluator | None = None,
     sizes=SIZES,
-    min_fall=MIN_FALL,
-    min_gain=MIN_GAIN,
 ) -> Discovery:
     """The discrepancy model fitted to `trials` at the model (`friction`, `effects`), on their residuals with the
-    replay's own miss on the model's motion taken off (corrected_residual); terms only where they remove `min_fall`
-    and `min_gain` of the held-out cost (0 and 0: always the sparse model's best, for benchmarks/discovery.py)."""
+    replay's own miss on the model's motion taken off (corrected_residual)."""
     evaluator = evaluator or Evaluator(None)
     start = evaluator.simulations
     keys, library = discrepancy_keys(trials), library_coordinates()
@@ -152,7 +149,7 @@ def discover(
     columns = [p[1][:, : len(keys)] for p in parts]
     library_columns = np.vstack([p[1][:, len(keys) :] for p in parts])
     path, cost_without = _sparsity_path(r, columns, sizes)
-    chosen = _choose(path, cost_without, min_fall, min_gain)
+    chosen = _choose(path, cost_without)
     if chosen is None:
         spent = evaluator.simulations - start
         return Discovery([], path, float(cost_without.sum()), 0.0, 0.0, dict(effects), spent)
@@ -241,16 +238,19 @@ def best_gain(path, cost_without) -> float:
     return max((float(np.sum(cost_without) - p["held"].sum()) for p in with_terms), default=0.0)
 
 
-def _choose(path, cost_without, min_fall, min_gain):
-    """The fewest terms within a standard error of the best held-out cost, if the best removes `min_fall` of the
-    held-out cost without terms and at least `min_gain` of it; else None."""
+def passes_gate(gain: float, cost_without, min_fall=MIN_FALL, min_gain=MIN_GAIN) -> bool:
+    """Whether a sparse model that removes `gain` of the held-out cost without terms (`cost_without`, per trial or
+    summed) may be reported: at least `min_fall` of that cost and at least `min_gain`."""
+    return gain >= min_gain and gain >= min_fall * float(np.sum(cost_without))
+
+
+def _choose(path, cost_without):
+    """The fewest terms within a standard error of the best held-out cost, if the best passes the gate
+    (passes_gate); else None."""
     with_terms = [p for p in path if p["support"]]
-    if not with_terms:
+    if not with_terms or not passes_gate(best_gain(path, cost_without), cost_without):
         return None
     best = min(with_terms, key=lambda p: p["held"].sum())
-    gain = best_gain(path, cost_without)
-    if gain < min_gain or gain < min_fall * cost_without.sum():
-        return None
     gain_per_trial = cost_without - best["held"]
     limit = best["held"].sum() + math.sqrt(len(gain_per_trial)) * gain_per_trial.std(ddof=1)
     return min((p for p in with_terms if p["held"].sum() <= limit), key=lambda p: p["size"])

@@ -210,21 +210,21 @@ def replay_errors(trials, friction, effects, evaluator: Evaluator, samples: int,
 def with_replay_error(lin: Linearization, evaluator: Evaluator, samples: int, paired: bool = False) -> Linearization:
     """`lin` with the replay's bias and input noise measured again at its model (their residuals moved
     from the old bias to the new one, the trial weights recomputed); `paired`: by the paired draws (replay_errors)."""
-    bias, noise, start_bias, draws = replay_errors(
-        lin.trials, lin.friction, lin.effects, evaluator, samples, lin if paired and lin.draws else None
-    )
+    new = _measured_error(lin, lin.trials, lin.friction, lin.effects, evaluator, samples, paired)
     old_bias, old_start = lin.bias or [None] * len(lin.r0), lin.start_bias or [None] * len(lin.w0)
-    r0 = [r + _moved_bias(before, after) for r, before, after in zip(lin.r0, old_bias, bias, strict=True)]
-    w0 = [w + _moved_bias(before, after) for w, before, after in zip(lin.w0, old_start, start_bias, strict=True)]
+    r0 = [r + _moved_bias(before, after) for r, before, after in zip(lin.r0, old_bias, new.bias, strict=True)]
+    w0 = [w + _moved_bias(b, a) for w, b, a in zip(lin.w0, old_start, new.start_bias, strict=True)]
+    return dataclasses.replace(new, r0=r0, w0=w0)
+
+
+def _measured_error(lin: Linearization, trials, friction, effects, evaluator, samples: int, paired: bool):
+    """`lin` with the replay's own error at (friction, effects) on `trials` (replay_errors, paired with lin's last
+    full measurement where `paired` and it has one): its bias, input noise, trial weights, start bias and draws."""
+    bias, noise, start_bias, draws = replay_errors(
+        trials, friction, effects, evaluator, samples, lin if paired and lin.draws else None
+    )
     return dataclasses.replace(
-        lin,
-        r0=r0,
-        bias=bias,
-        noise=noise,
-        weights=trial_weights(lin.trials, noise),
-        w0=w0,
-        start_bias=start_bias,
-        draws=draws,
+        lin, bias=bias, noise=noise, weights=trial_weights(lin.trials, noise), start_bias=start_bias, draws=draws
     )
 
 
@@ -265,17 +265,7 @@ def relinearize(
     out = evaluator.map(evaluate, [(t, friction, effects) for t in trials], what)
     target = lin
     if samples:
-        bias, noise, start_bias, draws = replay_errors(
-            trials, friction, effects, evaluator, samples, lin if paired and lin.draws else None
-        )
-        target = dataclasses.replace(
-            lin,
-            bias=bias,
-            noise=noise,
-            weights=trial_weights(lin.trials, noise),
-            start_bias=start_bias,
-            draws=draws,
-        )
+        target = _measured_error(lin, trials, friction, effects, evaluator, samples, paired)
     values = coordinate_values(lin.coordinates, friction, effects, trials)
     step = np.array(values) - np.array([c.value for c in lin.coordinates])
     names = [c.name for c in lin.coordinates]
