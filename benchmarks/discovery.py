@@ -5,12 +5,12 @@ that the model discovery starts from lacks.
                                    [--out benchmarks/out/discovery] [--markdown] [--table-only]
 
 Every campaign: two no-failure and two joint-7 trials of 2 s, with the synthesizer's sensor noise and start spread,
-made by this model or by reference.py (another model: kinematic joints, its own limits; it can hide only the toe).
-Hidden: nothing; a constant torque in the failed joint; a sideways force at the head proportional to its rolling
-speed; the rear wheels (modules 11-14) with half the lateral viscous friction; a tether dragging the tail (a
-Coulomb force at its end: the `study` effect, a shape the term library has); a wheel toe (a library effect the
-model lacks: its force pattern must come back). A floor seam (a force at a fixed place) is in neither the truth
-models nor the term library: not measured.
+made by this model or by reference.py (another model: kinematic joints, its own limits, the forces written anew:
+reference.HiddenForces). Hidden, by both: nothing; a constant torque in the failed joint; a sideways force at the
+head proportional to its rolling speed; the rear wheels (modules 11-14) with half the lateral viscous friction; a
+tether dragging the tail (a Coulomb force at its end: the `study` effect, a shape the term library has); a wheel toe
+(a library effect the model lacks: its force pattern must come back). A floor seam (a force at a fixed place) is in
+neither the truth models nor the term library: not measured.
 
 Discovery (diagnose/discover.py) runs from the paper's model with the truth's friction and its shipped gate: every
 campaign's best sparse model is recorded with its held-out gain, and where it passes the gate, its terms refined and
@@ -66,6 +66,16 @@ CELLS = [
     Cell("wheel toe 1.5 deg", "drake", {"wheel_toe_deg": 1.5},
          tuple((f"discrepancy_{g}_side_by_long_N_s_per_m", 1) for g in ("front", "middle", "rear"))),
     Cell("nothing (reference.py)", "reference", {}, ()),
+    Cell("failed joint's constant torque 0.2 N m (reference.py)", "reference",
+         {"discrepancy_failed_joint_bias_Nm": 0.2}, (("discrepancy_failed_joint_bias_Nm", 1),)),
+    Cell("head: sideways force 3 N s/m x rolling speed (reference.py)", "reference",
+         {"discrepancy_head_side_by_long_N_s_per_m": 3.0}, (("discrepancy_head_side_by_long_N_s_per_m", 1),)),
+    Cell("rear wheels: half the lateral viscous friction (reference.py)", "reference",
+         {"discrepancy_rear_drag_lat_N_s_per_m": -0.5 * C_LAT},
+         (("discrepancy_rear_drag_lat_N_s_per_m", -1), ("discrepancy_rear_dry_lat_N", -1))),
+    Cell("tail tether 1 N (reference.py)", "reference", {"tail_tether_N": 1.0},
+         tuple((f"discrepancy_tail_{k}", 1) for k in ("dry_long_N", "dry_lat_N", "drag_long_N_s_per_m",
+                                                         "drag_lat_N_s_per_m"))),
     Cell("wheel toe 1.5 deg (reference.py)", "reference", {"wheel_toe_deg": 1.5},
          tuple((f"discrepancy_{g}_side_by_long_N_s_per_m", 1) for g in ("front", "middle", "rear"))),
 ]  # fmt: skip

@@ -7,6 +7,10 @@ wheel friction from Eqs. 4-5, and SciPy's stiff ODE solver. As in the paper, the
 prescribed: they follow the serpenoid exactly, with no servo. A failed joint is free, with viscous
 friction c_joint and a stiff PD restoring torque beyond +-38 deg (paper section 3).
 
+Forces outside the paper's model, for data that hide them (issue 43): a tether dragging the tail's end and the
+discrepancy model's terms (the sites, groups and shapes that rc1_drake/discrepancy.py states), written anew here
+from their definitions, read from the scenario's effect keys (HiddenForces).
+
     M(z) z_ddot = -sum_k m_k J_k^T h_k(z, z_dot) + sum_w J_w^T F_w + tau_joint
 
 with z = (x, y, yaw of the head, q_1..q_13), J_k the Jacobian of module k's centre, h_k its
@@ -18,6 +22,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import re
 import time
 
 import numpy as np
@@ -31,6 +36,64 @@ STOP_GAIN = 200.0  # N m/rad, the joint-limit PD's stiffness (paper section 3)
 STOP_DAMPING = 1.0  # N m s/rad, its damping, active beyond the limit
 LIMIT_RAD = math.radians(38.0)
 G = 9.81
+TETHER_EPS_M_S = 0.05  # the tether's sgn() smoothing, as the engines': a cable's drag builds up over a few cm/s
+JOINT_EPS_RAD_S = 0.01  # a failed joint's dry torque's sgn() smoothing, as the engines'
+# The discrepancy model's site groups by 0-based module (the head's centre; wheels of modules 2-5, 6-10, 11-14; the
+# tail's end), and its kinds: in the module's frame at the site's velocity (u_long toward the head, u_lat to the
+# module's left), a positive drag or dry coefficient resisting the motion.
+WHEEL_GROUPS = {"front": range(1, 5), "middle": range(5, 10), "rear": range(10, 14)}
+SITE_KINDS = ("drag_long", "drag_lat", "dry_long", "dry_lat", "side_by_long", "push_long", "push_lat")
+JOINT_KINDS = ("bias", "spring", "drag", "dry")
+
+
+@dataclasses.dataclass
+class HiddenForces:
+    """What the scenario's effects add beyond Eqs. 4-5: a tether's Coulomb pull at the tail's end (N) and the
+    discrepancy terms, {group: {kind: coefficient}} at sites and {kind: coefficient} in the failed joints."""
+
+    tether_N: float = 0.0
+    sites: dict = dataclasses.field(default_factory=dict)
+    joint: dict = dataclasses.field(default_factory=dict)
+
+    @classmethod
+    def from_effects(cls, effects: dict) -> HiddenForces:
+        """The forces of `effects`' keys tail_tether_N and discrepancy_<group>_<kind>_<unit>; other keys are not
+        forces (the toe is toe_rad; the sensor faults act on the command and the readings)."""
+        out = cls(tether_N=float(effects.get("tail_tether_N", 0.0)))
+        for key, value in effects.items():
+            found = re.fullmatch(r"discrepancy_(head|front|middle|rear|tail|failed_joint)_([a-z_]+?)_(N|Nm)\w*", key)
+            if not found:
+                if key.startswith("discrepancy_"):
+                    raise ValueError(f"reference: unknown discrepancy term {key!r}")
+                continue
+            group, kind = found.group(1), found.group(2)
+            if kind not in (JOINT_KINDS if group == "failed_joint" else SITE_KINDS):
+                raise ValueError(f"reference: unknown discrepancy term {key!r}")
+            where = out.joint if group == "failed_joint" else out.sites.setdefault(group, {})
+            where[kind] = float(value)
+        return out
+
+    def __bool__(self) -> bool:
+        return bool(self.tether_N or self.sites or self.joint)
+
+    def joint_torque(self, q, qd) -> np.ndarray:
+        """The failed joints' torques at angles q and rates qd (arrays)."""
+        c = self.joint.get
+        sgn = qd / np.sqrt(qd * qd + JOINT_EPS_RAD_S**2)
+        return c("bias", 0.0) - c("spring", 0.0) * q - c("drag", 0.0) * qd - c("dry", 0.0) * sgn
+
+
+def site_law(c: dict, u_long, u_lat, eps) -> tuple:
+    """A site's force (f_long, f_lat) in its module's frame for its group's coefficients `c` (kind -> value)."""
+    k = lambda kind: c.get(kind, 0.0)  # noqa: E731
+    f_long = -k("drag_long") * u_long - k("dry_long") * u_long / np.sqrt(u_long * u_long + eps * eps) + k("push_long")
+    f_lat = (
+        -k("drag_lat") * u_lat
+        - k("dry_lat") * u_lat / np.sqrt(u_lat * u_lat + eps * eps)
+        + k("side_by_long") * u_long
+        + k("push_lat")
+    )
+    return f_long, f_lat
 
 
 @dataclasses.dataclass
@@ -124,6 +187,35 @@ class PlanarSnake:
         forces = f_long[:, None] * t + f_lat[:, None] * n
         return np.einsum("pai,pa->i", jac, forces)
 
+    def hidden_force(self, z, zd, hidden: HiddenForces, eps) -> np.ndarray:
+        """Generalized force of the tether and the discrepancy terms at their sites (HiddenForces; the failed
+        joints' torques are the caller's: it knows which joints are free)."""
+        phi, centres, joints = self.frames(z)
+        out = np.zeros_like(zd)
+        tail = self.n - 1
+        tail_end = centres[tail] - self._rot(phi[tail], self.b[-1])
+        sites = []  # (module, world point, coefficients)
+        if "head" in hidden.sites:
+            sites.append((0, centres[0], hidden.sites["head"]))
+        for w, m in enumerate(self.wheel_module):
+            group = next((g for g, ms in WHEEL_GROUPS.items() if m in ms), None)
+            if group in hidden.sites:
+                sites.append((m, centres[m] + self._rot(phi[m], self.wheel_offset[w]), hidden.sites[group]))
+        if "tail" in hidden.sites:
+            sites.append((tail, tail_end, hidden.sites["tail"]))
+        for m, point, c in sites:
+            jac = self.point_jacobian(point[None], np.array([m]), centres, joints)[0]
+            t = np.array([math.cos(phi[m]), math.sin(phi[m])])
+            n = np.array([-t[1], t[0]])
+            vel = jac @ zd
+            f_long, f_lat = site_law(c, vel @ t, vel @ n, eps)
+            out += jac.T @ (f_long * t + f_lat * n)
+        if hidden.tether_N:
+            jac = self.point_jacobian(tail_end[None], np.array([tail]), centres, joints)[0]
+            vel = jac @ zd
+            out += jac.T @ (-hidden.tether_N * vel / math.sqrt(vel @ vel + TETHER_EPS_M_S**2))
+        return out
+
 
 def simulate_reference(
     scenario: Scenario, geometry, *, joint_path=None, rtol=1e-7, atol=1e-9, at_rest="centre", t_eval=None, toe_rad=0.0
@@ -134,7 +226,8 @@ def simulate_reference(
     given (q: (N, 13) rad), a cubic spline through those samples (e.g. the angles a servo achieved).
     At t = 0 the mean module yaw does not turn and the body's centre of mass (at_rest="centre", the protocol's
     start) or the head (at_rest="head") is at rest. `t_eval`: the output times (the solver's own by default; a
-    line crossing is appended as the last sample); toe_rad: every wheel turned by it (the wheel_toe effect).
+    line crossing is appended as the last sample); toe_rad: every wheel turned by it (the wheel_toe effect). The
+    scenario's tether and discrepancy terms act as HiddenForces.
     """
     if any(f.time_s != 0.0 or f.mode != "free" for f in scenario.failures):
         raise ValueError("the reference model handles joints that are free from t = 0 only")
@@ -146,6 +239,7 @@ def simulate_reference(
     fixed = 3 + working
     eps = scenario.numerics.sgn_smoothing_m_s
     c_joint = scenario.friction.c_joint
+    hidden = HiddenForces.from_effects(scenario.effects)
 
     if joint_path is None:
 
@@ -176,6 +270,9 @@ def simulate_reference(
         over = np.abs(qf) - LIMIT_RAD
         stop = np.where(over > 0, -np.sign(qf) * STOP_GAIN * over - STOP_DAMPING * qfd, 0.0)
         force[3 + failed] += -c_joint * qfd + stop
+        if hidden:
+            force += snake.hidden_force(z, zd, hidden, eps)
+            force[3 + failed] += hidden.joint_torque(qf, qfd)
         rhs_free = force[free] - mass_matrix[np.ix_(free, fixed)] @ qdd[working]
         acc = np.linalg.solve(mass_matrix[np.ix_(free, free)], rhs_free)
         return np.concatenate([zd[free], acc])

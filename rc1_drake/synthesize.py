@@ -77,9 +77,13 @@ SERVO_SPEED_LIMIT_DEG_S = 140.0  # HiTec HS5645MG (paper section 2; models/rc1.s
 DESIGNS = {"paper": PAPER_DESIGN, "identification": IDENTIFICATION_DESIGN}
 
 
-# What the independent model can express: the wheel toe, and the sensor faults (they act on its command and
-# on what its sensors read, not on its physics).
-REFERENCE_EFFECTS = ("wheel_toe_deg", *(e.main.key for e in LIBRARY.values() if e.sensor))
+# What the independent model can express: the wheel toe, the sensor faults (they act on its command and on what its
+# sensors read, not on its physics), the tail's tether and the discrepancy terms (reference.HiddenForces).
+REFERENCE_EFFECTS = (
+    "wheel_toe_deg",
+    "tail_tether_N",
+    *(e.main.key for e in LIBRARY.values() if e.sensor or e.discrepancy),
+)
 
 
 def synthesize_campaign(
@@ -110,10 +114,10 @@ def synthesize_campaign(
     from. record_after_s: the recording starts that long after the robot did (the data then start in motion)."""
     if truth_model not in TRUTH_MODELS:
         raise Rc1Error(f"synthesize: truth model must be one of {', '.join(TRUTH_MODELS)}, got {truth_model!r}")
-    if truth_model == "reference" and set(effects or {}) - set(REFERENCE_EFFECTS):
+    if truth_model == "reference" and (beyond := sorted(set(effects or {}) - set(REFERENCE_EFFECTS))):
         raise Rc1Error(
-            f"synthesize: the reference truth model can express wheel_toe_deg and the sensor faults "
-            f"(rc1 effects) only, not {', '.join(sorted(set(effects) - set(REFERENCE_EFFECTS)))}"
+            f"synthesize: the reference truth model can express wheel_toe_deg, tail_tether_N, the sensor faults "
+            f"and the discrepancy terms (rc1 effects) only, not {', '.join(beyond)}"
         )
     if record_after_s < 0 or abs(record_after_s / sample_period_s - round(record_after_s / sample_period_s)) > 1e-9:
         raise Rc1Error(

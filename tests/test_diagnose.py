@@ -34,7 +34,7 @@ from rc1_drake.diagnose.linearize import (
     trial_weights,
     with_replay_error,
 )
-from rc1_drake.diagnose.loop import searched_friction
+from rc1_drake.diagnose.loop import needs_friction_search, searched_friction
 from rc1_drake.diagnose.replays import evaluate
 from rc1_drake.diagnose.report import CandidateResult, HeldOutScore, Round
 from rc1_drake.diagnose.significance import Misfit, final_misfit, misfit, subspace_cosine
@@ -488,14 +488,22 @@ def test_a_cheaper_replay_error_finds_the_same_toe_with_fewer_bootstraps(tmp_pat
 
 
 def test_where_no_friction_is_identified_the_search_walks_toward_the_data(tmp_path):
-    """Data made with half the paper's lateral Coulomb friction: the paper's own search (one coefficient at a time)
-    from the paper's values moves mu_lat toward the truth and lowers the diagnosis's sum of squares."""
+    """Data made with half the paper's lateral Coulomb friction: the start's replays miss by more than the noise,
+    so the paper's own search (one coefficient at a time) runs, and from the paper's values it moves mu_lat toward
+    the truth and lowers the diagnosis's sum of squares. On the same design at the paper's friction it does not run
+    (there it would walk the noise)."""
     truth = 0.5 * Friction().mu_lat
-    synthesize_campaign(tmp_path, design=[Case([], 1), Case([7], 1)], seed=3, friction=dataclasses.replace(
-        Friction(), mu_lat=truth), stop=Stop(line_x_m=None, revolutions=None, time_limit_s=1.5))  # fmt: skip
-    trials, evaluator = load_campaign(tmp_path).trials, Evaluator(None)
     others = [n for n in FRICTION_NAMES if n != "mu_lat"]
-    lin = linearize(trials, Friction(), {}, [], evaluator, noise=[np.zeros((0, 0))] * len(trials), held=others)
+    evaluator = Evaluator(None)
+    lins = {}
+    for label, mu_lat in (("far", truth), ("at", Friction().mu_lat)):
+        synthesize_campaign(tmp_path / label, design=[Case([], 1), Case([7], 1)], seed=3, friction=dataclasses.replace(
+            Friction(), mu_lat=mu_lat), stop=Stop(line_x_m=None, revolutions=None, time_limit_s=1.5))  # fmt: skip
+        trials = load_campaign(tmp_path / label).trials
+        lins[label] = linearize(trials, Friction(), {}, [], evaluator, input_noise_samples=2, held=others)
+    assert needs_friction_search(lins["far"], ["mu_lat"], [], THRESHOLDS)
+    assert not needs_friction_search(lins["at"], ["mu_lat"], [], THRESHOLDS)
+    lin = lins["far"]
     found = searched_friction(lin, ["mu_lat"], evaluator)
     assert found is not None and truth <= found.mu_lat < Friction().mu_lat
     assert dataclasses.replace(found, mu_lat=Friction().mu_lat) == Friction()  # only what was searched moved

@@ -119,6 +119,13 @@ def _candidates(trials, effects, candidates) -> tuple:
     return [n for n in names if LIBRARY[n].seen_in_replay and n not in in_model], unseen
 
 
+def needs_friction_search(lin: Linearization, names: list[str], free: list[str], thresholds: Thresholds) -> bool:
+    """Whether the screen's verdict (no coefficient of `names` identified) was judged far from the data: only where
+    the start's replays miss by more than the noise (significance.misfit). At the data, a search walks the flat
+    directions the screen saw down the noise (seen: a campaign at the paper's friction, mu_lat moved 1.5 -> 2.8)."""
+    return bool(names) and not free and not misfit(lin, lin.r0, 0, thresholds).consistent
+
+
 def searched_friction(lin: Linearization, names: list[str], evaluator) -> Friction | None:
     """Where the screen at the start identifies no coefficient, it judged far from where the data are (seen: mu_lat
     0.6 in the data, 1.5 at the start, none identified, the start's values kept; the linear fit there goes to the
@@ -156,8 +163,9 @@ class _Search:
 
     @classmethod
     def begin(cls, lin, evaluator, trials, replayed, held, samples, thresholds) -> "_Search":
-        """The search at the start: the friction these data identify (where none is at the start, judged again
-        where a search of the friction goes: searched_friction), the trials' starts fitted with it."""
+        """The search at the start: the friction these data identify (where none is at the start and its replays
+        miss by more than the noise, judged again where a search of the friction goes: needs_friction_search,
+        searched_friction), the trials' starts fitted with it."""
         nuisance = [c.name for c in lin.coordinates if c.owner == START]
         names = [n for n in FRICTION_NAMES if n not in held]
         free = screen_friction(lin, names, nuisance=nuisance)
@@ -172,7 +180,9 @@ class _Search:
                 "cases": start.by_case(trials),
             }
         ]
-        found = searched_friction(lin, names, evaluator) if names and not free else None
+        found = None
+        if needs_friction_search(lin, names, free, thresholds):
+            found = searched_friction(lin, names, evaluator)
         if found is not None:  # linearized again where the search went, and judged there
             lin = linearize(lin.trials, found, lin.effects, replayed, evaluator, input_noise_samples=samples,
                             held=held, starts=bool(nuisance))  # fmt: skip
