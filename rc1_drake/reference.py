@@ -7,9 +7,10 @@ wheel friction from Eqs. 4-5, and SciPy's stiff ODE solver. As in the paper, the
 prescribed: they follow the serpenoid exactly, with no servo. A failed joint is free, with viscous
 friction c_joint and a stiff PD restoring torque beyond +-38 deg (paper section 3).
 
-Forces outside the paper's model, for data that hide them (issue 43): a tether dragging the tail's end and the
+Forces outside the paper's model, for data that hide them (issue 43): a tether dragging the tail's end, the
 discrepancy model's terms (the sites, groups and shapes that rc1_drake/discrepancy.py states), written anew here
-from their definitions, read from the scenario's effect keys (HiddenForces).
+from their definitions, and a floor seam twisting the head at a fixed x (in no other model: what discovery makes of
+a shape its library lacks), read from the scenario's effect keys (HiddenForces).
 
     M(z) z_ddot = -sum_k m_k J_k^T h_k(z, z_dot) + sum_w J_w^T F_w + tau_joint
 
@@ -44,6 +45,7 @@ JOINT_EPS_RAD_S = 0.01  # a failed joint's dry torque's sgn() smoothing, as the 
 WHEEL_GROUPS = {"front": range(1, 5), "middle": range(5, 10), "rear": range(10, 14)}
 SITE_KINDS = ("drag_long", "drag_lat", "dry_long", "dry_lat", "side_by_long", "push_long", "push_lat")
 JOINT_KINDS = ("bias", "spring", "drag", "dry")
+SEAM_WIDTH_M = 0.03  # a floor seam's reach along x (the standard deviation of its Gaussian profile)
 
 
 @dataclasses.dataclass
@@ -54,12 +56,19 @@ class HiddenForces:
     tether_N: float = 0.0
     sites: dict = dataclasses.field(default_factory=dict)
     joint: dict = dataclasses.field(default_factory=dict)
+    seam_Nm: float = 0.0  # a floor seam: a torque turning the head counter-clockwise as its centre crosses seam_x_m
+    seam_x_m: float = 0.3
 
     @classmethod
     def from_effects(cls, effects: dict) -> HiddenForces:
-        """The forces of `effects`' keys tail_tether_N and discrepancy_<group>_<kind>_<unit>; other keys are not
-        forces (the toe is toe_rad; the sensor faults act on the command and the readings)."""
-        out = cls(tether_N=float(effects.get("tail_tether_N", 0.0)))
+        """The forces of `effects`' keys tail_tether_N, floor_seam_Nm and floor_seam_x_m, and
+        discrepancy_<group>_<kind>_<unit>; other keys are not forces (the toe is toe_rad; the sensor faults act on
+        the command and the readings)."""
+        out = cls(
+            tether_N=float(effects.get("tail_tether_N", 0.0)),
+            seam_Nm=float(effects.get("floor_seam_Nm", 0.0)),
+            seam_x_m=float(effects.get("floor_seam_x_m", 0.3)),
+        )
         for key, value in effects.items():
             found = re.fullmatch(r"discrepancy_(head|front|middle|rear|tail|failed_joint)_([a-z_]+?)_(N|Nm)\w*", key)
             if not found:
@@ -74,7 +83,11 @@ class HiddenForces:
         return out
 
     def __bool__(self) -> bool:
-        return bool(self.tether_N or self.sites or self.joint)
+        return bool(self.tether_N or self.sites or self.joint or self.seam_Nm)
+
+    def seam_torque(self, head_x) -> float:
+        """The seam's torque on the head (N m, counter-clockwise) with its centre at x = head_x."""
+        return self.seam_Nm * math.exp(-0.5 * ((head_x - self.seam_x_m) / SEAM_WIDTH_M) ** 2)
 
     def joint_torque(self, q, qd) -> np.ndarray:
         """The failed joints' torques at angles q and rates qd (arrays)."""
@@ -214,6 +227,7 @@ class PlanarSnake:
             jac = self.point_jacobian(tail_end[None], np.array([tail]), centres, joints)[0]
             vel = jac @ zd
             out += jac.T @ (-hidden.tether_N * vel / math.sqrt(vel @ vel + TETHER_EPS_M_S**2))
+        out[2] += hidden.seam_torque(z[0])  # a torque on the head alone does work on its yaw only
         return out
 
 

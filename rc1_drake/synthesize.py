@@ -79,10 +79,14 @@ DESIGNS = {"paper": PAPER_DESIGN, "identification": IDENTIFICATION_DESIGN}
 
 # What the independent model can express: the wheel toe, the sensor faults (they act on its command and on what its
 # sensors read, not on its physics), the tail's tether and the discrepancy terms (reference.HiddenForces).
+# A floor seam (reference.HiddenForces) is in no other model, nor in the library: what discovery makes of a shape
+# it has no term for.
+REFERENCE_ONLY = ("floor_seam_Nm", "floor_seam_x_m")
 REFERENCE_EFFECTS = (
     "wheel_toe_deg",
     "tail_tether_N",
     *(e.main.key for e in LIBRARY.values() if e.sensor or e.discrepancy),
+    *REFERENCE_ONLY,
 )
 
 
@@ -116,9 +120,11 @@ def synthesize_campaign(
         raise Rc1Error(f"synthesize: truth model must be one of {', '.join(TRUTH_MODELS)}, got {truth_model!r}")
     if truth_model == "reference" and (beyond := sorted(set(effects or {}) - set(REFERENCE_EFFECTS))):
         raise Rc1Error(
-            f"synthesize: the reference truth model can express wheel_toe_deg, tail_tether_N, the sensor faults "
-            f"and the discrepancy terms (rc1 effects) only, not {', '.join(beyond)}"
+            f"synthesize: the reference truth model can express wheel_toe_deg, tail_tether_N, the sensor faults, "
+            f"the discrepancy terms (rc1 effects) and a floor seam only, not {', '.join(beyond)}"
         )
+    if truth_model == "drake" and (only := sorted(set(effects or {}) & set(REFERENCE_ONLY))):
+        raise Rc1Error(f"synthesize: {', '.join(only)}: only the reference truth model has a floor seam")
     if record_after_s < 0 or abs(record_after_s / sample_period_s - round(record_after_s / sample_period_s)) > 1e-9:
         raise Rc1Error(
             f"synthesize: record_after_s must be a non-negative multiple of the sample period, got {record_after_s}"

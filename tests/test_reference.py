@@ -65,6 +65,8 @@ def test_a_campaign_made_by_the_reference_model_records_its_own_start(tmp_path):
         synthesize_campaign(
             tmp_path / "d", design=[Case([], 1)], truth_model="reference", effects={"head_drag_mu": 0.2}
         )
+    with pytest.raises(Rc1Error, match="floor_seam_Nm: only the reference truth model has a floor seam"):
+        synthesize_campaign(tmp_path / "g", design=[Case([], 1)], effects={"floor_seam_Nm": 1.0})
     with pytest.raises(Rc1Error, match="non-negative multiple of the sample period, got 0.015"):
         synthesize_campaign(
             tmp_path / "e", design=[Case([], 1)], truth_model="reference", record_after_s=0.015, sample_period_s=0.01
@@ -106,8 +108,8 @@ def test_the_reference_model_applies_the_discrepancy_terms_and_the_tether_as_dra
 
 def test_hidden_forces_read_their_keys_and_act_as_defined():
     """Hand values of the site law (module frame: +long toward the head, +lat to its left; a positive drag or dry
-    coefficient resists) and of a failed joint's torque; an unknown term is refused by name."""
-    from rc1_drake.reference import HiddenForces, site_law
+    coefficient resists), of a failed joint's torque and of a floor seam's; an unknown term is refused by name."""
+    from rc1_drake.reference import SEAM_WIDTH_M, HiddenForces, site_law
 
     eps = 1e-3
     assert site_law({"side_by_long": 3.0}, 0.2, 0.0, eps) == pytest.approx((0.0, 0.6))
@@ -121,5 +123,7 @@ def test_hidden_forces_read_their_keys_and_act_as_defined():
     assert hidden.tether_N == 1.5 and hidden.sites == {"head": {"side_by_long": 3.0}}
     assert hidden.joint_torque(np.array([0.5]), np.array([0.0])) == pytest.approx([0.1 - 0.3 * 0.5])
     assert not HiddenForces.from_effects({"wheel_toe_deg": 1.0})
+    seam = HiddenForces.from_effects({"floor_seam_Nm": 2.0, "floor_seam_x_m": 1.0})
+    assert seam.seam_torque(1.0) == 2.0 and seam.seam_torque(1.0 + SEAM_WIDTH_M) == pytest.approx(2.0 * np.exp(-0.5))
     with pytest.raises(ValueError, match="unknown discrepancy term 'discrepancy_head_spin_N'"):
         HiddenForces.from_effects({"discrepancy_head_spin_N": 1.0})
