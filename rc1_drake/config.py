@@ -144,7 +144,7 @@ class Scenario:
     gait: Gait = dataclasses.field(default_factory=Gait)
     servo: Servo = dataclasses.field(default_factory=Servo)
     friction: Friction = dataclasses.field(default_factory=Friction)
-    # Physical effects beyond the paper's model by parameter key (effects.py); empty is the paper's model.
+    # Physical effects beyond the paper's model by parameter key (rc1_drake/effects/); empty is the paper's model.
     effects: dict[str, float] = dataclasses.field(default_factory=dict)
     failures: list[Failure] = dataclasses.field(default_factory=list)
     start: Start = dataclasses.field(default_factory=Start)

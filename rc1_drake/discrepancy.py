@@ -6,7 +6,7 @@ the module's frame that are fixed shapes of the site's velocity u = (u_long, u_l
 failed joints as torques that are fixed shapes of the joint's angle and rate (joint_shapes). A term's coefficient
 is shared by the sites of its group (GROUPS). The step adds sum_k theta_k phi_k(x) inside the implicit friction
 solve beside Eqs. 4-5 (friction.assemble_step: the velocity shapes at the step's end velocity; the joint bias and
-spring at its start), the tangent model differentiates it exactly (engine/tangent.py), and effects.py registers
+spring at its start), the tangent model differentiates it exactly (engine/tangent.py), and effects/terms.py registers
 each term as an effect of the `discrepancy` group, so that a model file, compare and a fit take it like any other.
 
 Sign conventions are the README's: +long rolls toward the head, +lat is the module's left; a positive

@@ -51,7 +51,7 @@ def smooth_sign(v, eps):
     return v / np.sqrt(v * v + eps * eps)
 
 
-# Shape of the Coulomb terms beyond the paper (effects.py); zeros give Eqs. 4-5 exactly:
+# Shape of the Coulomb terms beyond the paper (rc1_drake/effects/); zeros give Eqs. 4-5 exactly:
 # [lateral asymmetry a_lat, longitudinal asymmetry a_long, Stribeck ratio r, Stribeck speed v_s (m/s)].
 PAPER_SHAPE = np.array([0.0, 0.0, 0.0, 0.01])
 
@@ -125,7 +125,7 @@ def wheel_friction_forces(
 
     v_long, v_lat: the wheel centre's velocity along its rolling and lateral axes (m/s);
     normal_force: N per wheel (newtons); eps: sgn() smoothing (m/s). Returns (f_long, f_lat), N.
-    The keyword terms are candidate effects (effects.py; 0 is the paper's model): the Coulomb part
+    The keyword terms are candidate effects (rc1_drake/effects/; 0 is the paper's model): the Coulomb part
     becomes mu N (1 + a sgn(v)) sgn(v), and laterally also (1 + r exp(-(v/v_s)^2)) (Stribeck).
     """
     shape = np.array([lat_asymmetry, long_asymmetry, stribeck_ratio, stribeck_speed_m_s], dtype=float)
@@ -397,7 +397,7 @@ def implicit_friction_force(
     joint_damping: (nv,) viscous joint friction per coordinate (c_joint on failed joints, else 0);
     momentum_free: M v + dt * (every other generalized force); v: the velocity at the step's start.
     eps must be > 0: the implicit solve needs a finite damping rate at v = 0. Candidate effects
-    (effects.py; defaults are the paper's model): `shape` (PAPER_SHAPE's layout), an isotropic
+    (rc1_drake/effects/; defaults are the paper's model): `shape` (PAPER_SHAPE's layout), an isotropic
     Coulomb drag `head_coulomb` (N) on the point whose (2, nv) velocity Jacobian is `jac_head`, and
     dry joint friction `joint_coulomb` (nv,) in N m, its sign smoothed at `joint_eps` rad/s.
     `servo` = (offset, rate, power), each (nv,): servos in the same step, with torque
@@ -433,7 +433,7 @@ def implicit_friction_force(
     return force if servo is None else (force, torque)
 
 
-# Parameter layout of FrictionForces: the paper's five coefficients, eps; the effect terms (effects.py:
+# Parameter layout of FrictionForces: the paper's five coefficients, eps; the effect terms (rc1_drake/effects/:
 # PAPER_SHAPE's four, the head's Coulomb drag coefficient and normal force, dry friction of a failed
 # joint, a payload's mass and module, a failed joint's compliant stop: stiffness, damping, onset angle); then per
 # joint its state (0 working, 1 failed free: its
@@ -660,7 +660,7 @@ class KnownForces:
 class FrictionForces(LeafSystem):
     """The model's friction as one generalized force on the planar plant, implicit in time:
     the wheels' (Eqs. 4-5), the failed joints' viscous friction c_joint (section 3) and the friction
-    terms of the candidate effects (effects.py). The servos' torque is part of the same implicit step.
+    terms of the candidate effects (rc1_drake/effects/). The servos' torque is part of the same implicit step.
 
     Inputs `plant_state` [q; v], `servo_command` (13, the PID's command sampled at the step's start) and
     `servo_power` (13, each servo's torque limit). Outputs `generalized_force` for the plant's

@@ -1,5 +1,5 @@
 """What a user types, loaded and checked: named scenarios (YAML, read with Drake's yaml_load_typed),
-model files, and the validation every scenario passes before a run (scenario keys, then effects.py's
+model files, and the validation every scenario passes before a run (scenario keys, then rc1_drake/effects'
 parameter bounds). Errors are one line naming the file or source, the key and the problem.
 """
 
@@ -33,7 +33,7 @@ def load_scenario(name: str, *, filename=DEFAULT_SCENARIOS) -> Scenario:
 
 @dataclasses.dataclass
 class ModelFile:
-    """What a fit or a diagnosis found: friction coefficients and physical effects (effects.py); read by
+    """What a fit or a diagnosis found: friction coefficients and physical effects (rc1_drake/effects/); read by
     `--model-file` of run, compare, sweep and identify. A file holding only the five friction
     coefficients at the top level (the older friction file) is read too."""
 

@@ -110,7 +110,7 @@ def synthesize_campaign(
 ) -> Campaign:
     """Write a campaign to `folder` and, if `truth_file` is given, what made it. Unset arguments take
     their defaults: the paper's friction, no effect, Noise(), Variation(), Stop(). `effects` maps
-    effect parameter keys to values (effects.py).
+    effect parameter keys to values (rc1_drake/effects/).
 
     truth_model "drake": the Drake model driven by the gait through its servos, from the protocol's start;
     "reference": the independent planar model of reference.py (kinematic joints as the paper drives them,

@@ -1,5 +1,5 @@
 """Find the missing physics: fit today's model, see where it fails, rank the candidate effects
-(effects.py) on held-out trials, accept one only when it is significant and holds on trials it was not
+(rc1_drake/effects/) on held-out trials, accept one only when it is significant and holds on trials it was not
 fitted to, add it, and repeat until nothing more is found; the waterfall shows what each step bought.
 
 The method, linearized where that is safe and checked by simulation where it decides:

@@ -1,5 +1,5 @@
 """The identification's parameters: one Parameter type for a friction coefficient (paper Eqs. 4-5), an effect's
-parameter or coordinate (effects.py), or a nuisance (a trial's start rate); the default set of the paper's five
+parameter or coordinate (rc1_drake/effects/), or a nuisance (a trial's start rate); the default set of the paper's five
 coefficients, and the values a model takes when some of them are set. (effects.EffectParameter is an effect's
 declaration of its parameters: key, bounds, default, probe step; a fit makes Parameters of it.)
 """
@@ -15,7 +15,7 @@ PAPER_MANUAL = Friction(c_joint=0.045, mu_lat=1.5, mu_long=0.1, c_lat=2.0, c_lon
 
 @dataclasses.dataclass
 class Parameter:
-    name: str  # a Friction field, an effect parameter's or coordinate's key (effects.py), or "<trial>:<start rate>"
+    name: str  # a Friction field, an effect parameter's or coordinate's key (rc1_drake/effects/), or "<trial>:<start rate>"
     lower: float
     upper: float
     frozen: bool = False  # held at its value by a fit
