@@ -103,8 +103,9 @@ def one(cell: Cell, seed: int, args) -> dict:
 
 
 def reported(row: dict, min_fall: float, min_gain: float) -> bool:
-    """Whether the gate (discover.passes_gate) lets the campaign's best sparse model through."""
-    return passes_gate(row["gain"], row["cost_without"], min_fall, min_gain)
+    """Whether the gate (discover.passes_gate) lets the campaign's best sparse model through and a term of it stays
+    off zero when refined (discover drops those at a zero bound; rows made before it kept them)."""
+    return passes_gate(row["gain"], row["cost_without"], min_fall, min_gain) and any(t["value"] for t in row["terms"])
 
 
 def is_right(row: dict, cell: Cell) -> bool:

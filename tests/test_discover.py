@@ -88,3 +88,16 @@ def test_a_discovery_that_fails_keeps_the_diagnosis_and_names_it(tmp_path, monke
     assert code == 2 and "wheel_toe_deg: 1\n" in out.read_text()
     (line,) = capsys.readouterr().err.strip().splitlines()
     assert line == f"rc1 diagnose: error: discovery: every run failed; kept: the diagnosis's model in {out}"
+
+
+def test_a_term_refined_to_its_zero_bound_is_not_reported():
+    """A drag clipped to its zero bound (it may not turn into a push) is the model without it: dropped with its
+    column; the others kept in order."""
+    from rc1_drake.diagnose.discover import _without_zeros
+
+    values = {"a": 0.3, "b": 0.0, "c": -1.2}
+    jacobian = np.arange(12.0).reshape(4, 3)
+    kept, (j, r, rows) = _without_zeros(values, (jacobian, np.ones(4), [2, 2]))
+    assert kept == {"a": 0.3, "c": -1.2}
+    np.testing.assert_array_equal(j, jacobian[:, [0, 2]])
+    assert _without_zeros({"b": 0.0}, (jacobian[:, 1:2], np.ones(4), [4]))[0] == {}

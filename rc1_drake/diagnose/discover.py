@@ -155,7 +155,9 @@ def discover(
         return Discovery([], path, float(cost_without.sum()), 0.0, 0.0, dict(effects), spent)
     support = [keys[j] for j in chosen["support"]]
     values = dict(zip(support, chosen["values"], strict=True))
-    values, fitted = _refined(trials, friction, effects, values, evaluator)
+    values, fitted = _without_zeros(*_refined(trials, friction, effects, values, evaluator))
+    if not values:  # every term refined to a zero bound: the model without them
+        return Discovery([], path, float(cost_without.sum()), 0.0, 0.0, dict(effects), evaluator.simulations - start)
     model = {**effects, **values}
     errors = _standard_errors(trials, friction, model, fitted, evaluator)
     before = sum(float(x @ x) for x in r)
@@ -293,6 +295,15 @@ def _refined(trials, friction, effects, values, evaluator) -> tuple:
         else:
             break
     return values, (here[1], here[0], here[2])
+
+
+def _without_zeros(values: dict, fitted: tuple) -> tuple:
+    """(values, fitted) without the terms at exactly 0 (a term clipped to its zero bound, a drag that may not turn
+    into a push: the model without it, not a finding), their Jacobian columns with them."""
+    keys = list(values)
+    keep = [j for j, k in enumerate(keys) if values[k] != 0.0]
+    jacobian, residual, rows = fitted
+    return {keys[j]: values[keys[j]] for j in keep}, (jacobian[:, keep], residual, rows)
 
 
 def _standard_errors(trials, friction, model, fitted, evaluator) -> np.ndarray:

@@ -15,7 +15,7 @@ PAPER_MANUAL = Friction(c_joint=0.045, mu_lat=1.5, mu_long=0.1, c_lat=2.0, c_lon
 
 @dataclasses.dataclass
 class Parameter:
-    name: str  # a Friction field, an effect parameter's or coordinate's key (rc1_drake/effects/), or "<trial>:<start rate>"
+    name: str  # a Friction field, an effect parameter's or coordinate's key (effects/), or "<trial>:<start rate>"
     lower: float
     upper: float
     frozen: bool = False  # held at its value by a fit
