@@ -67,7 +67,7 @@ class HiddenForces:
         out = cls(
             tether_N=float(effects.get("tail_tether_N", 0.0)),
             seam_Nm=float(effects.get("floor_seam_Nm", 0.0)),
-            seam_x_m=float(effects.get("floor_seam_x_m", 0.3)),
+            seam_x_m=float(effects.get("floor_seam_x_m", cls.seam_x_m)),
         )
         for key, value in effects.items():
             found = re.fullmatch(r"discrepancy_(head|front|middle|rear|tail|failed_joint)_([a-z_]+?)_(N|Nm)\w*", key)

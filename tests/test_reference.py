@@ -7,12 +7,12 @@ failed joint, not the servo model. The smoothing is coarser than the default (5 
 to keep the stiff reference integration short.
 """
 
-from dataclasses import replace as dataclasses_replace
+import dataclasses
 
 import numpy as np
 import pytest
 
-from rc1_drake.config import Failure, Numerics, Scenario
+from rc1_drake.config import Failure, Numerics, Scenario, Stop
 from rc1_drake.reference import simulate_reference
 
 CASES = {"nominal": [], "joint_7": [Failure(joint=7)]}
@@ -36,9 +36,7 @@ def test_a_campaign_made_by_the_reference_model_records_its_own_start(tmp_path):
     """`synthesize --truth-model reference`: the planar model's trial, recorded 0.5 s after the robot started
     from the head at rest, at 50 Hz: the recorded gait's wave is advanced by those 0.5 s (the measured angles
     are its serpenoid), the data begin in motion, and effects it cannot express are refused."""
-    import dataclasses
-
-    from rc1_drake.config import Rc1Error, Stop
+    from rc1_drake.config import Rc1Error
     from rc1_drake.gait import serpenoid
     from rc1_drake.measurements import load_campaign
     from rc1_drake.synthesize import Case, Noise, synthesize_campaign
@@ -91,15 +89,13 @@ def test_the_reference_model_applies_the_discrepancy_terms_and_the_tether_as_dra
     reference's head as the Drake Diagram's (friction.py's kernels) move it: given Drake's achieved angles, the
     heading agrees several times closer with them than without them (measured: 0.03 against 0.31 deg nominal,
     0.48 against 2.9 deg with joint 7 free, over 4 s)."""
-    from rc1_drake.config import Stop
-
     failures, effects = HIDDEN[case]
     scenario = Scenario(failures=failures, numerics=Numerics(sgn_smoothing_m_s=5e-3, log_period_s=0.005),
                         effects=effects, stop=Stop(time_limit_s=4.0))  # fmt: skip
     run = simulate_cached(scenario)
     errors = {}
     for label, effects_there in (("with", effects), ("without", {})):
-        there = dataclasses_replace(scenario, effects=effects_there)
+        there = dataclasses.replace(scenario, effects=effects_there)
         ref = simulate_reference(there, run.geometry, joint_path=(run.t, run.q), rtol=1e-5, atol=1e-7)
         errors[label] = np.abs(np.interp(run.t, ref.t, ref.head_yaw) - run.head_yaw).max()
     assert errors["with"] < errors["without"] / 4
