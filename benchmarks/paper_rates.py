@@ -188,6 +188,7 @@ def one(cell: Cell, seed: int, args) -> dict:
         "partial": [r.partial for r in result.rounds if r.partial],
         "final_effects": result.effects,
         "free_friction": result.free,
+        "friction_search": result.friction_search,
         "final_friction": dataclasses.asdict(result.friction),
         "steps": [w["model"] for w in result.waterfall],
         "simulations": result.simulations,

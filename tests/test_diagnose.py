@@ -34,7 +34,7 @@ from rc1_drake.diagnose.linearize import (
     trial_weights,
     with_replay_error,
 )
-from rc1_drake.diagnose.loop import needs_friction_search, searched_friction
+from rc1_drake.diagnose.loop import far_friction, needs_friction_search
 from rc1_drake.diagnose.replays import evaluate
 from rc1_drake.diagnose.report import CandidateResult, HeldOutScore, Round
 from rc1_drake.diagnose.significance import Misfit, final_misfit, misfit, subspace_cosine
@@ -487,26 +487,33 @@ def test_a_cheaper_replay_error_finds_the_same_toe_with_fewer_bootstraps(tmp_pat
         assert all(m.endswith(f"(paired): {n * PAIRED_DRAWS} replays") for m in draws[2:])
 
 
-def test_where_no_friction_is_identified_the_search_walks_toward_the_data(tmp_path):
+def test_where_no_friction_is_identified_the_search_walks_toward_the_data_unless_an_effect_explains_more(tmp_path):
     """Data made with half the paper's lateral Coulomb friction: the start's replays miss by more than the noise,
     so the paper's own search (one coefficient at a time) runs, and from the paper's values it moves mu_lat toward
-    the truth and lowers the diagnosis's sum of squares. On the same design at the paper's friction it does not run
-    (there it would walk the noise)."""
+    the truth and lowers the diagnosis's sum of squares; a toe cannot do as well, so the searched friction is kept.
+    On the same design at the paper's friction it does not run (there it would walk the noise). With a 3 deg toe
+    hidden at the paper's friction the start misses too, the search moves mu_lat, but the toe explains more: the
+    start's friction is kept for the rounds to find the toe."""
     truth = 0.5 * Friction().mu_lat
     others = [n for n in FRICTION_NAMES if n != "mu_lat"]
     evaluator = Evaluator(None)
     lins = {}
-    for label, mu_lat in (("far", truth), ("at", Friction().mu_lat)):
-        synthesize_campaign(tmp_path / label, design=[Case([], 1), Case([7], 1)], seed=3, friction=dataclasses.replace(
-            Friction(), mu_lat=mu_lat), stop=Stop(line_x_m=None, revolutions=None, time_limit_s=1.5))  # fmt: skip
+    for label, mu_lat, hidden in (("far", truth, {}), ("at", Friction().mu_lat, {}), ("toe", Friction().mu_lat,
+                                  {"wheel_toe_deg": 3.0})):  # fmt: skip
+        synthesize_campaign(tmp_path / label, design=[Case([], 1), Case([7], 1)], seed=3, effects=hidden,
+                            friction=dataclasses.replace(Friction(), mu_lat=mu_lat),
+                            stop=Stop(line_x_m=None, revolutions=None, time_limit_s=1.5))  # fmt: skip
         trials = load_campaign(tmp_path / label).trials
-        lins[label] = linearize(trials, Friction(), {}, [], evaluator, input_noise_samples=2, held=others)
+        lins[label] = linearize(trials, Friction(), {}, ["wheel_toe"], evaluator, input_noise_samples=2, held=others)
     assert needs_friction_search(lins["far"], ["mu_lat"], [], THRESHOLDS)
     assert not needs_friction_search(lins["at"], ["mu_lat"], [], THRESHOLDS)
-    lin = lins["far"]
-    found = searched_friction(lin, ["mu_lat"], evaluator)
-    assert found is not None and truth <= found.mu_lat < Friction().mu_lat
+    assert needs_friction_search(lins["toe"], ["mu_lat"], [], THRESHOLDS)
+    found, note = far_friction(lins["far"], ["mu_lat"], [], ["wheel_toe"], evaluator, THRESHOLDS, 2)
+    assert found is not None and truth <= found.mu_lat < Friction().mu_lat, note
     assert dataclasses.replace(found, mu_lat=Friction().mu_lat) == Friction()  # only what was searched moved
+    kept, note = far_friction(lins["toe"], ["mu_lat"], [], ["wheel_toe"], evaluator, THRESHOLDS, 2)
+    assert note.startswith("searched (mu_lat 1.5 -> "), note  # the friction alone would absorb part of the toe
+    assert kept is None and "wheel_toe at the start explains more" in note, note
 
 
 def test_a_paired_replay_error_at_the_same_model_is_the_full_one(tmp_path):

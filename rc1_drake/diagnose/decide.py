@@ -15,6 +15,8 @@ from .report import CandidateResult, HeldOutScore
 from .significance import orthogonal_to, subspace_cosine
 from .thresholds import THRESHOLDS, Thresholds
 
+NOT_DETECTABLE = "not detectable here"  # a candidate whose largest physical value would not be significant
+
 
 def held_out_by_simulation(lin: Linearization, fitted: Fit, evaluator: Evaluator, label: str) -> HeldOutScore:
     """Every trial replayed with the parameters fitted without it."""
@@ -83,7 +85,7 @@ def rank(
             and np.linalg.norm(projected[name]) > 1e-9
         )
         if not visible:
-            status = "not detectable here"
+            status = NOT_DETECTABLE
         elif p >= thresholds.p_accept:
             status = "not significant"
         elif reduction < thresholds.min_held_out_reduction:

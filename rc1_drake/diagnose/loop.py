@@ -15,9 +15,9 @@ from ..sysid.evaluate import Checkpoint, Evaluator
 from ..sysid.residual import trial_residual
 from ..sysid.stats import interval95
 from .coordinates import START, physics_names
-from .decide import decide, held_out_by_simulation, rank, screen_friction, unrefitted
+from .decide import NOT_DETECTABLE, decide, held_out_by_simulation, rank, screen_friction, unrefitted
 from .fit import fit, polish, starts_fitted
-from .linearize import Linearization, linearize, moved, with_replay_error
+from .linearize import Linearization, linearize, moved, relinearize, with_replay_error
 from .probe import suggest_experiments
 from .replays import INPUT_NOISE_SAMPLES, evaluate, replay_and_score
 from .report import Diagnosis, Round, waterfall_step
@@ -126,12 +126,12 @@ def needs_friction_search(lin: Linearization, names: list[str], free: list[str],
     return bool(names) and not free and not misfit(lin, lin.r0, 0, thresholds).consistent
 
 
-def searched_friction(lin: Linearization, names: list[str], evaluator) -> Friction | None:
+def searched_friction(lin: Linearization, names: list[str], evaluator) -> tuple[Friction | None, float]:
     """Where the screen at the start identifies no coefficient, it judged far from where the data are (seen: mu_lat
     0.6 in the data, 1.5 at the start, none identified, the start's values kept; the linear fit there goes to the
     bounds, mu_lat to 5). The paper's own search (AVS: one coefficient at a time over a few candidates, identify.avs)
-    walks the friction down the diagnosis's weighted sum of squares, one pass over `names`: the friction it found,
-    or None where it found nothing better."""
+    walks the friction down the diagnosis's weighted sum of squares, one pass over `names`: (the friction it found,
+    or None where it found nothing better; the weighted sum of squares there)."""
 
     def cost(friction: Friction) -> float:
         out = evaluator.map(evaluate, [(t, friction, lin.effects) for t in lin.trials], "searching the friction")
@@ -139,7 +139,47 @@ def searched_friction(lin: Linearization, names: list[str], evaluator) -> Fricti
 
     searched = avs(cost, start=lin.friction, iterations=len(names), parameters=[lin.coordinate(n) for n in names])
     better = searched.iterations and searched.iterations[-1].error < searched.start_error
-    return searched.iterations[-1].friction if better else None
+    return (searched.iterations[-1].friction, searched.error) if better else (None, searched.start_error)
+
+
+def best_candidate_at_start(lin: Linearization, nuisance: list[str], replayed: list[str], evaluator, thresholds):
+    """(name, weighted sum of squares, coordinates) of the candidate that explains most of the start's miss: the
+    best detectable ones of the linear ranking, each refined by a secant step (one replay a trial) as a round
+    does; None where no candidate is detectable."""
+    base = fit(lin, nuisance)
+    ranked = [c for c in rank(lin, base, nuisance, replayed, thresholds=thresholds) if c.status != NOT_DETECTABLE]
+    best = None
+    for c in ranked[:REFINED_CANDIDATES]:
+        own = nuisance + [co.name for co in lin.coordinates if co.owner == c.name]
+        at = moved(lin, own, fit(lin, own).values, evaluator, what=f"refining {c.name} at the start")
+        cost = at.weighted_sum_of_squares(at.r0)
+        if best is None or cost < best[1]:
+            best = (c.name, cost, len(own) - len(nuisance))
+    return best
+
+
+def far_friction(lin, names, nuisance, replayed, evaluator, thresholds, samples) -> tuple[Friction | None, str]:
+    """(the searched friction where it explains the start's miss better than any one candidate does, else None; what
+    was decided, in words). A miss beyond the noise is a far friction or a missing effect: the search alone lets the
+    friction absorb an effect (seen: a hidden 1.5 deg toe taken up by mu_lat 1.5 -> 2.25, c_joint halved), so the two
+    compete on the weighted sum of squares, each charged 2 per coordinate it moves (AIC). The friction is judged with
+    the replay's own error measured again there (`samples` draws a trial): the search's cost keeps the start's, which
+    at a far start misjudges it (seen: 6.6e5 with the start's, 6.4e3 measured there)."""
+    found, searched = searched_friction(lin, names, evaluator)
+    if found is None:
+        return None, f"searched ({', '.join(names)}); nothing lowered the sum of squares"
+    moved_names = [n for n in names if getattr(found, n) != getattr(lin.friction, n)]
+    steps = ", ".join(f"{n} {getattr(lin.friction, n):.3g} -> {getattr(found, n):.3g}" for n in moved_names)
+    there = relinearize(lin, found, lin.effects, evaluator, "residuals at the searched friction", samples=samples)
+    cost = there.weighted_sum_of_squares(there.r0)
+    rival = best_candidate_at_start(lin, nuisance, replayed, evaluator, thresholds)
+    if rival is not None and rival[1] + 2 * rival[2] < cost + 2 * len(moved_names):
+        return None, (
+            f"searched ({steps}: weighted sum of squares {cost:.4g}), not kept: {rival[0]} at the start explains "
+            f"more ({rival[1]:.4g})"
+        )
+    against = f", against {rival[1]:.4g} for the best candidate ({rival[0]})" if rival else ""
+    return found, f"searched and kept: {steps} (weighted sum of squares {cost:.4g}{against})"
 
 
 @dataclasses.dataclass
@@ -160,12 +200,13 @@ class _Search:
     rounds: list[Round] = dataclasses.field(default_factory=list)
     stop_reason: str = ""
     replay_error: str = "full"  # at each accepted and polished model: one of REPLAY_ERROR_MODES
+    friction_search: str = ""  # whether the friction was searched at the start, and what was decided (far_friction)
 
     @classmethod
     def begin(cls, lin, evaluator, trials, replayed, held, samples, thresholds) -> "_Search":
         """The search at the start: the friction these data identify (where none is at the start and its replays
-        miss by more than the noise, judged again where a search of the friction goes: needs_friction_search,
-        searched_friction), the trials' starts fitted with it."""
+        miss by more than the noise, judged again where a search of the friction goes, if the friction explains that
+        miss better than a candidate does: needs_friction_search, far_friction), the trials' starts fitted with it."""
         nuisance = [c.name for c in lin.coordinates if c.owner == START]
         names = [n for n in FRICTION_NAMES if n not in held]
         free = screen_friction(lin, names, nuisance=nuisance)
@@ -180,9 +221,12 @@ class _Search:
                 "cases": start.by_case(trials),
             }
         ]
-        found = None
+        found, note = None, "not needed: " + (
+            "every coefficient held" if not names else f"the start identifies {', '.join(free)}" if free else
+            "the start's replays are within the noise"
+        )  # fmt: skip
         if needs_friction_search(lin, names, free, thresholds):
-            found = searched_friction(lin, names, evaluator)
+            found, note = far_friction(lin, names, nuisance, replayed, evaluator, thresholds, samples)
         if found is not None:  # linearized again where the search went, and judged there
             lin = linearize(lin.trials, found, lin.effects, replayed, evaluator, input_noise_samples=samples,
                             held=held, starts=bool(nuisance))  # fmt: skip
@@ -190,7 +234,9 @@ class _Search:
             lin = starts_fitted(lin, nuisance, free, evaluator)
             waterfall.append(waterfall_step(FAR_LABEL, unrefitted(lin, FAR_LABEL), trials))
         model_names = nuisance + list(free)
-        return cls(lin, evaluator, trials, replayed, nuisance, free, model_names, samples, thresholds, waterfall)
+        search = cls(lin, evaluator, trials, replayed, nuisance, free, model_names, samples, thresholds, waterfall)
+        search.friction_search = note
+        return search
 
     def label(self) -> str:
         return "today's model" if not self.accepted else "+ " + " + ".join(self.accepted)
@@ -281,7 +327,7 @@ class _Search:
         )
         # A column taken at 0 misjudges an effect at a visible strength: a secant step refines it (docs/diagnosis.md).
         refined = {}
-        for c in [c for c in results if c.status != "not detectable here"][:REFINED_CANDIDATES]:
+        for c in [c for c in results if c.status != NOT_DETECTABLE][:REFINED_CANDIDATES]:
             own = names + [co.name for co in lin.coordinates if co.owner == c.name]
             at = moved(lin, own, fit(lin, own).values, evaluator, what=f"refining {c.name}")
             again = rank(at, fit(at, names), names, [c.name], reference=base_fit, thresholds=thresholds)[0]
@@ -352,7 +398,7 @@ class _Search:
             for n, se in zip(final_fit.names, final_fit.standard_errors, strict=True)
         }
         not_detectable = list(unseen)
-        for c in (c for r in self.rounds for c in r.candidates if c.status == "not detectable here"):
+        for c in (c for r in self.rounds for c in r.candidates if c.status == NOT_DETECTABLE):
             if c.name not in [d["name"] for d in not_detectable]:
                 not_detectable.append(
                     {
@@ -384,6 +430,7 @@ class _Search:
             trials=lin.trials,
             report=report,
             stop_reason=self.stop_reason,
+            friction_search=self.friction_search,
             final_coordinates={n: v for n, v in final.items() if n not in self.nuisance},
             starts={n: v for n, v in final.items() if n in self.nuisance},
         )

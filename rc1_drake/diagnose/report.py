@@ -108,6 +108,7 @@ class Diagnosis:
     final_coordinates: dict[str, list[float]] = dataclasses.field(default_factory=dict)  # name -> [value, se]
     starts: dict[str, list[float]] = dataclasses.field(default_factory=dict)  # "<trial>:<rate>" -> [value, se]
     stop_reason: str = ""
+    friction_search: str = ""  # at the start, where no coefficient was identified (loop.far_friction)
     resumed: int = 0  # of the simulations, results taken from a checkpoint of an interrupted run
     unexplained_trials: dict[str, dict] = dataclasses.field(default_factory=dict)  # trial -> misfit (see Misfit)
     trials: list = dataclasses.field(default_factory=list, repr=False)  # the trials, with their fitted starts
@@ -150,6 +151,7 @@ class Diagnosis:
             "final_coordinates": self.final_coordinates,
             "starts": self.starts,
             "stop_reason": self.stop_reason,
+            "friction_search": self.friction_search,
             "waterfall": self.waterfall,
             "misfit_p": self.misfit_p,
             "unexplained_trials": self.unexplained_trials,
@@ -189,7 +191,7 @@ class Diagnosis:
             *self.summary(),
             "",
             f"Diagnosis of {self.campaign} ({len(self.trials)} trials; friction these data identify: "
-            f"{', '.join(self.free) or 'none'}, the others held):",
+            f"{', '.join(self.free) or 'none'}, the others held; the friction's search: {self.friction_search}):",
         ]
         for k, r in enumerate(self.rounds):
             lines += [
