@@ -21,10 +21,10 @@ from .config import Failure, Friction, Numerics, Scenario, Servo, Start, Stop
 from .effects import sensor_model
 from .engine import make_session
 from .engine.dynamics import plant_numbers
-from .gait import serpenoid
+from .gait import serpenoid, serpenoid_parameters
 from .measurements import Trial
 from .protocol import Run, rest_state
-from .smoothing import smoothed_samples
+from .smoothing import smoothed_about_wave
 from .start import StartEstimate, fit_start
 
 # The paper's kinematic joints (section 3: a working joint follows the measured motion): a servo whose
@@ -68,8 +68,9 @@ def joint_reference(trial: Trial, measured_q=None) -> JointReference:
     q = np.zeros_like(trial.q)
     q_dot = np.zeros_like(trial.q)
     variances = []
-    for j in trial.working_joints:
-        q[:, j - 1], q_dot[:, j - 1], variance = smoothed_samples(t, measured[:, j - 1])
+    omega = serpenoid_parameters(trial.gait)[1]
+    for j in trial.working_joints:  # about the gait's wave: a spline of the angles alone shrinks the wave
+        q[:, j - 1], q_dot[:, j - 1], variance = smoothed_about_wave(t, measured[:, j - 1], float(omega[j - 1]))
         variances.append(variance)
     # Past the data (EVENT_GRACE_SAMPLES, to reach a stop event) the joints go on at their last rates; a knot
     # there makes both engines follow the same continuation.

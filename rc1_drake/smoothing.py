@@ -145,6 +145,21 @@ def smoothed_samples(x, y) -> tuple:
     return values, slopes, rss / trace
 
 
+def smoothed_about_wave(x, y, omega: float) -> tuple:
+    """smoothed_samples of y(x) about its least-squares wave c0 + c1 sin(omega x) + c2 cos(omega x): the spline's
+    curvature penalty then acts on what departs from the gait's wave (paper Eqs. 3, 7), not on the wave itself,
+    whose curvature it would shrink in proportion to the weight the noise makes GCV choose (a partial spline, Green &
+    Silverman 1994 ch. 4). Linear in y, it reproduces a constant, and GCV's weight does not move with an offset or a
+    scale of y, as for smoothed_samples. The wave's two extra degrees of freedom are left out of the noise variance
+    (a 10 s trial at 50 Hz: 0.4% low)."""
+    x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
+    basis = np.column_stack([np.ones_like(x), np.sin(omega * x), np.cos(omega * x)])
+    c = np.linalg.lstsq(basis, y, rcond=None)[0]
+    wave = basis @ c
+    values, slopes, variance = smoothed_samples(x, y - wave)
+    return values + wave, slopes + omega * (c[1] * np.cos(omega * x) - c[2] * np.sin(omega * x)), variance
+
+
 def smoothing_fit(x, y) -> tuple:
     """(the GCV cubic smoothing spline of y(x), the samples' noise variance |y - f|^2 / tr(I - A)): the
     residuals' mean square alone is low by the degrees of freedom the spline spends (Green & Silverman
