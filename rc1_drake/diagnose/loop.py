@@ -171,7 +171,7 @@ def far_friction(lin, names, nuisance, replayed, evaluator, thresholds, samples)
     moved_names = [n for n in names if getattr(found, n) != getattr(lin.friction, n)]
     steps = ", ".join(f"{n} {getattr(lin.friction, n):.3g} -> {getattr(found, n):.3g}" for n in moved_names)
     there = relinearize(lin, found, lin.effects, evaluator, "residuals at the searched friction", samples=samples)
-    cost = there.weighted_sum_of_squares(there.r0)
+    cost = lin.weighted_sum_of_squares(there.r0)  # with the start's trial weights, as the candidates' costs
     rival = best_candidate_at_start(lin, nuisance, replayed, evaluator, thresholds)
     if rival is not None and rival[1] + 2 * rival[2] < cost + 2 * len(moved_names):
         return None, (
