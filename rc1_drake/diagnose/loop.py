@@ -126,12 +126,12 @@ def needs_friction_search(lin: Linearization, names: list[str], free: list[str],
     return bool(names) and not free and not misfit(lin, lin.r0, 0, thresholds).consistent
 
 
-def searched_friction(lin: Linearization, names: list[str], evaluator) -> tuple[Friction | None, float]:
+def searched_friction(lin: Linearization, names: list[str], evaluator) -> Friction | None:
     """Where the screen at the start identifies no coefficient, it judged far from where the data are (seen: mu_lat
     0.6 in the data, 1.5 at the start, none identified, the start's values kept; the linear fit there goes to the
     bounds, mu_lat to 5). The paper's own search (AVS: one coefficient at a time over a few candidates, identify.avs)
-    walks the friction down the diagnosis's weighted sum of squares, one pass over `names`: (the friction it found,
-    or None where it found nothing better; the weighted sum of squares there)."""
+    walks the friction down the diagnosis's weighted sum of squares, one pass over `names`: the friction it found,
+    or None where it found nothing better."""
 
     def cost(friction: Friction) -> float:
         out = evaluator.map(evaluate, [(t, friction, lin.effects) for t in lin.trials], "searching the friction")
@@ -139,7 +139,7 @@ def searched_friction(lin: Linearization, names: list[str], evaluator) -> tuple[
 
     searched = avs(cost, start=lin.friction, iterations=len(names), parameters=[lin.coordinate(n) for n in names])
     better = searched.iterations and searched.iterations[-1].error < searched.start_error
-    return (searched.iterations[-1].friction, searched.error) if better else (None, searched.start_error)
+    return searched.iterations[-1].friction if better else None
 
 
 def best_candidate_at_start(lin: Linearization, nuisance: list[str], replayed: list[str], evaluator, thresholds):
@@ -150,12 +150,23 @@ def best_candidate_at_start(lin: Linearization, nuisance: list[str], replayed: l
     ranked = [c for c in rank(lin, base, nuisance, replayed, thresholds=thresholds) if c.status != NOT_DETECTABLE]
     best = None
     for c in ranked[:REFINED_CANDIDATES]:
-        own = nuisance + [co.name for co in lin.coordinates if co.owner == c.name]
-        at = moved(lin, own, fit(lin, own).values, evaluator, what=f"refining {c.name} at the start")
+        at = secant_refined(lin, nuisance, c.name, evaluator, f"refining {c.name} at the start")
         cost = at.weighted_sum_of_squares(at.r0)
         if best is None or cost < best[1]:
-            best = (c.name, cost, len(own) - len(nuisance))
+            best = (c.name, cost, len(owned(lin, c.name)))
     return best
+
+
+def owned(lin: Linearization, name: str) -> list[str]:
+    """The coordinates of candidate `name`."""
+    return [c.name for c in lin.coordinates if c.owner == name]
+
+
+def secant_refined(lin: Linearization, names: list[str], candidate: str, evaluator, what: str) -> Linearization:
+    """`lin` moved to its linear fit of `names` and `candidate`'s coordinates: one secant step, one replay a trial
+    (a column taken at 0 misjudges an effect at a visible strength; docs/diagnosis.md)."""
+    own = names + owned(lin, candidate)
+    return moved(lin, own, fit(lin, own).values, evaluator, what=what)
 
 
 def far_friction(lin, names, nuisance, replayed, evaluator, thresholds, samples) -> tuple[Friction | None, str]:
@@ -165,7 +176,7 @@ def far_friction(lin, names, nuisance, replayed, evaluator, thresholds, samples)
     compete on the weighted sum of squares, each charged 2 per coordinate it moves (AIC). The friction is judged with
     the replay's own error measured again there (`samples` draws a trial): the search's cost keeps the start's, which
     at a far start misjudges it (seen: 6.6e5 with the start's, 6.4e3 measured there)."""
-    found, searched = searched_friction(lin, names, evaluator)
+    found = searched_friction(lin, names, evaluator)
     if found is None:
         return None, f"searched ({', '.join(names)}); nothing lowered the sum of squares"
     moved_names = [n for n in names if getattr(found, n) != getattr(lin.friction, n)]
@@ -325,11 +336,9 @@ class _Search:
         results = rank(
             lin, base_fit, names, [n for n in self.replayed if n not in self.accepted], thresholds=thresholds
         )
-        # A column taken at 0 misjudges an effect at a visible strength: a secant step refines it (docs/diagnosis.md).
         refined = {}
         for c in [c for c in results if c.status != NOT_DETECTABLE][:REFINED_CANDIDATES]:
-            own = names + [co.name for co in lin.coordinates if co.owner == c.name]
-            at = moved(lin, own, fit(lin, own).values, evaluator, what=f"refining {c.name}")
+            at = secant_refined(lin, names, c.name, evaluator, f"refining {c.name}")
             again = rank(at, fit(at, names), names, [c.name], reference=base_fit, thresholds=thresholds)[0]
             again.visibility, again.indistinguishable_from = c.visibility, c.indistinguishable_from
             refined[c.name] = (again, at)
@@ -337,7 +346,7 @@ class _Search:
         checked = {}
         for c in [c for c in results if c.status == "candidate" and c.name in refined][:CHECKED_CANDIDATES]:
             at = refined[c.name][1]
-            cand_fit = fit(at, names + [co.name for co in at.coordinates if co.owner == c.name])
+            cand_fit = fit(at, names + owned(at, c.name))
             check = held_out_by_simulation(at, cand_fit, evaluator, f"{self.label()} + {c.name}")
             c.simulated = {
                 "held_out_sum_of_squares_before": baseline.sum_of_squares,
