@@ -196,12 +196,17 @@ def one(cell: Cell, seed: int, args) -> dict:
     }
 
 
+def look_alikes(row: dict, cell: Cell) -> set:
+    """The effects a campaign took for what it hides: accepted or tied for the verdict, and not hidden."""
+    return (set(row["accepted"]) | set(row.get("ambiguous_between", []))) - set(cell.expected or ())
+
+
 def table(rows: list, cells: list) -> tuple:
     """(the markdown table, its one-line summary) over the rows of `cells`."""
     lines = [
-        "| hidden | campaigns | right | wrong effect accepted | ambiguous | unexplained | nothing found | "
-        "95% interval holds the truth | trials left unexplained | median min |",
-        "|---|---|---|---|---|---|---|---|---|---|",
+        "| hidden | campaigns | right | wrong effect accepted | ambiguous | unexplained | nothing found | 95% interval "
+        "holds the truth | taken for (accepted or tied, not hidden) | trials left unexplained | median min |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     totals = {"right": 0, "wrong": 0, "n": 0, "null_right": 0, "null_n": 0}
     for cell in cells:
@@ -217,9 +222,11 @@ def table(rows: list, cells: list) -> tuple:
         minutes = float(np.median([r["wall_s"] for r in mine])) / 60  # a campaign timed across a pause reads long
         left = collections.Counter(t.rsplit("_", 1)[0] for r in mine for t in r.get("unexplained_trials", []))
         left_text = ", ".join(f"{case} {k}" for case, k in left.most_common(3)) or "-"
+        taken = collections.Counter(e for r in mine for e in look_alikes(r, cell))
+        taken_text = ", ".join(f"{e} {k}" for e, k in taken.most_common(2)) or "-"
         lines.append(
             f"| {cell.label} | {n} | {count['right']} | {count['wrong']} | {count['ambiguous']} | "
-            f"{count['unexplained']} | {count['missed']} | {cov} | {left_text} | {minutes:.1f} |"
+            f"{count['unexplained']} | {count['missed']} | {cov} | {taken_text} | {left_text} | {minutes:.1f} |"
         )
         totals["right"] += count["right"]
         totals["wrong"] += count["wrong"]

@@ -227,6 +227,21 @@ def test_trials_whose_replays_move_with_the_input_noise_weigh_less_in_the_fit():
     assert fit(lin, ["a"]).values[0] == pytest.approx(expected, abs=1e-6)
 
 
+def test_two_models_that_call_a_trial_differently_noisy_compare_on_their_likelihood():
+    """The likelihood of residuals of variance 1 / w^2 (a trial's weight): with unit weights the sum of squares; over
+    a trial's weight it is largest where 1 / w^2 is the residuals' own mean square, so a model that calls a trial
+    noisier than its residuals are pays for it, and one that calls it as noisy as they are gains."""
+    rng = np.random.default_rng(9)
+    r0 = [3.0 * rng.normal(size=400), rng.normal(size=400)]
+    lin = _linearization({"a": [np.zeros(400)] * 2}, r0)
+    lin.weights = np.ones(2)
+    assert lin.neg2_log_likelihood(r0) == pytest.approx(lin.weighted_sum_of_squares(r0))
+    scale = np.linspace(0.05, 1.0, 400)
+    cost = [lin.neg2_log_likelihood(r0) for lin.weights in ([w, 1.0] for w in scale)]
+    assert scale[int(np.argmin(cost))] == pytest.approx(1.0 / np.sqrt(np.mean(r0[0] ** 2)), abs=0.01)
+    assert min(cost[0], cost[-1]) > min(cost) + 100  # calling it far noisier, or as quiet as the other, costs
+
+
 def test_a_few_outlying_trials_are_named_and_the_rest_tested_without_them():
     rng = np.random.default_rng(7)
     residual = [rng.normal(size=12) for _ in range(20)]

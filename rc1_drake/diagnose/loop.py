@@ -143,7 +143,7 @@ def searched_friction(lin: Linearization, names: list[str], evaluator) -> Fricti
 
 
 def best_candidate_at_start(lin: Linearization, nuisance: list[str], replayed: list[str], evaluator, thresholds):
-    """(name, weighted sum of squares, coordinates) of the candidate that explains most of the start's miss: the
+    """(name, -2 log likelihood, coordinates) of the candidate that explains most of the start's miss: the
     best detectable ones of the linear ranking, each refined by a secant step (one replay a trial) as a round
     does; None where no candidate is detectable."""
     base = fit(lin, nuisance)
@@ -151,7 +151,7 @@ def best_candidate_at_start(lin: Linearization, nuisance: list[str], replayed: l
     best = None
     for c in ranked[:REFINED_CANDIDATES]:
         at = secant_refined(lin, nuisance, c.name, evaluator, f"refining {c.name} at the start")
-        cost = at.weighted_sum_of_squares(at.r0)
+        cost = at.neg2_log_likelihood(at.r0)
         if best is None or cost < best[1]:
             best = (c.name, cost, len(owned(lin, c.name)))
     return best
@@ -173,24 +173,25 @@ def far_friction(lin, names, nuisance, replayed, evaluator, thresholds, samples)
     """(the searched friction where it explains the start's miss better than any one candidate does, else None; what
     was decided, in words). A miss beyond the noise is a far friction or a missing effect: the search alone lets the
     friction absorb an effect (seen: a hidden 1.5 deg toe taken up by mu_lat 1.5 -> 2.25, c_joint halved), so the two
-    compete on the weighted sum of squares, each charged 2 per coordinate it moves (AIC). The friction is judged with
-    the replay's own error measured again there (`samples` draws a trial): the search's cost keeps the start's, which
-    at a far start misjudges it (seen: 6.6e5 with the start's, 6.4e3 measured there)."""
+    compete on their likelihood, each charged 2 per coordinate it moves (AIC). The friction is judged with the
+    replay's own error measured again there (`samples` draws a trial): the search's cost keeps the start's, which at
+    a far start misjudges it (seen: 6.6e5 with the start's, 6.4e3 measured there); its input noise moves the trials'
+    weights (seen: the J7 trials' 0.55 -> 0.09 at mu_lat 0.75), which the likelihood's spread term prices."""
     found = searched_friction(lin, names, evaluator)
     if found is None:
         return None, f"searched ({', '.join(names)}); nothing lowered the sum of squares"
     moved_names = [n for n in names if getattr(found, n) != getattr(lin.friction, n)]
     steps = ", ".join(f"{n} {getattr(lin.friction, n):.3g} -> {getattr(found, n):.3g}" for n in moved_names)
     there = relinearize(lin, found, lin.effects, evaluator, "residuals at the searched friction", samples=samples)
-    cost = lin.weighted_sum_of_squares(there.r0)  # with the start's trial weights, as the candidates' costs
+    cost = there.neg2_log_likelihood(there.r0)
     rival = best_candidate_at_start(lin, nuisance, replayed, evaluator, thresholds)
     if rival is not None and rival[1] + 2 * rival[2] < cost + 2 * len(moved_names):
         return None, (
-            f"searched ({steps}: weighted sum of squares {cost:.4g}), not kept: {rival[0]} at the start explains "
+            f"searched ({steps}: -2 log likelihood {cost:.4g}), not kept: {rival[0]} at the start explains "
             f"more ({rival[1]:.4g})"
         )
     against = f", against {rival[1]:.4g} for the best candidate ({rival[0]})" if rival else ""
-    return found, f"searched and kept: {steps} (weighted sum of squares {cost:.4g}{against})"
+    return found, f"searched and kept: {steps} (-2 log likelihood {cost:.4g}{against})"
 
 
 @dataclasses.dataclass
