@@ -42,6 +42,8 @@ SITE_KINDS = (
     ("side_by_long", "N_s_per_m", "a sideways force to its left proportional to its longitudinal velocity"),
     ("push_long", "N", "a constant force toward the head along its axis"),
     ("push_lat", "N", "a constant force to its left"),
+    ("quad_long", "N_s2_per_m2", "a force against its longitudinal velocity, growing with its square (|v| v)"),
+    ("quad_lat", "N_s2_per_m2", "a force against its lateral velocity, growing with its square (|v| v)"),
 )
 # Failed-joint kinds: torque tau = joint_shapes(q, q_dot) @ theta, in failed (free) joints only.
 JOINT_KINDS = (
@@ -74,6 +76,8 @@ def site_shapes(u_long, u_lat, eps):
     out[1, 4] = u_long
     out[0, 5] = 1.0
     out[1, 6] = 1.0
+    out[0, 7] = -abs(u_long) * u_long
+    out[1, 8] = -abs(u_lat) * u_lat
     return out
 
 
@@ -86,6 +90,8 @@ def site_shape_rates(u_long, u_lat, eps):
     along[1, 4] = 1.0
     across[1, 1] = -1.0
     across[1, 3] = -(eps * eps) / (u_lat * u_lat + eps * eps) ** 1.5
+    along[0, 7] = -2.0 * abs(u_long)
+    across[1, 8] = -2.0 * abs(u_lat)
     return along, across
 
 

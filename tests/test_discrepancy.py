@@ -50,13 +50,13 @@ def test_the_shapes_by_hand():
     s_long, s_lat = u_long / math.hypot(u_long, eps), u_lat / math.hypot(u_lat, eps)
     expected = np.array(
         [
-            [-0.3, 0.0, -s_long, 0.0, 0.0, 1.0, 0.0],  # f_long
-            [0.0, 0.4, 0.0, -s_lat, 0.3, 0.0, 1.0],  # f_lat
+            [-0.3, 0.0, -s_long, 0.0, 0.0, 1.0, 0.0, -0.09, 0.0],  # f_long
+            [0.0, 0.4, 0.0, -s_lat, 0.3, 0.0, 1.0, 0.0, 0.16],  # f_lat
         ]
     )
     np.testing.assert_allclose(site_shapes(u_long, u_lat, eps), expected, rtol=1e-14)
     assert [k for _, k, _, _ in term_names()[:NSK]] == [
-        "drag_long", "drag_lat", "dry_long", "dry_lat", "side_by_long", "push_long", "push_lat"
+        "drag_long", "drag_lat", "dry_long", "dry_lat", "side_by_long", "push_long", "push_lat", "quad_long", "quad_lat"
     ]  # fmt: skip
     q, q_dot = 0.2, -0.5
     np.testing.assert_allclose(joint_shapes(q, q_dot, 0.01), [1.0, -0.2, 0.5, 0.5 / math.hypot(0.5, 0.01)], rtol=1e-14)

@@ -110,6 +110,7 @@ def test_hidden_forces_read_their_keys_and_act_as_defined():
     eps = 1e-3
     assert site_law({"side_by_long": 3.0}, 0.2, 0.0, eps) == pytest.approx((0.0, 0.6))
     assert site_law({"drag_lat": 2.0, "push_long": 0.5}, 0.1, -0.05, eps) == pytest.approx((0.5, 0.1))
+    assert site_law({"quad_long": 2.0, "quad_lat": 1.0}, -0.3, 0.2, eps) == pytest.approx((0.18, -0.04))
     f_long, f_lat = site_law({"dry_long": 1.0, "dry_lat": 1.0}, 1.0, -1.0, eps)
     assert f_long == pytest.approx(-1.0, rel=1e-6) and f_lat == pytest.approx(1.0, rel=1e-6)
     hidden = HiddenForces.from_effects(

@@ -11,7 +11,8 @@ class DiscrepancyTerm(Effect):
 
     discrepancy = True
     default_candidate = False
-    BOUNDS = {"N_s_per_m": 5.0, "N": 5.0, "Nm": 1.0, "Nm_per_rad": 5.0, "Nm_s_per_rad": 0.5}
+    # |v| v's bound: about the viscous bound's force at the gait's 0.3 m/s
+    BOUNDS = {"N_s_per_m": 5.0, "N_s2_per_m2": 15.0, "N": 5.0, "Nm": 1.0, "Nm_per_rad": 5.0, "Nm_s_per_rad": 0.5}
 
     def __init__(self, index: int, group: str, kind: str, unit: str, words: str):
         self.index, self.group, self.kind, self.unit, self.words = index, group, kind, unit, words
@@ -26,7 +27,7 @@ class DiscrepancyTerm(Effect):
         """A term that resists motion may take away at most the paper's own friction where it acts: none at the
         wheelless head, the tail's end or in a failed joint's dry friction, c_lat / c_long at a wheel (its Coulomb
         part, which needs the wheel's load, is bounded as the other terms), c_joint in a failed joint."""
-        if not self.kind.startswith(("drag", "dry")):
+        if not self.kind.startswith(("drag", "dry", "quad")):
             return -bound
         paper = Friction()
         if self.group == "failed_joint":
