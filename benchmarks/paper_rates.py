@@ -1,7 +1,7 @@
 """How often a diagnosis is right on the paper's design (issue 42): a confusion table over seeded campaigns.
 
     python benchmarks/paper_rates.py [--seeds 100-105] [--cells CELL,...] [--trials-per-case 2] [--workers 2]
-                                     [--variant default|keep-replay-error|paired-replay-error]
+                                     [--variant default|keep-replay-error|full-replay-error]
                                      [--out benchmarks/out/paper_rates]
                                      [--markdown] [--table-only]
 
@@ -24,7 +24,7 @@ intervals' coverage of the truth where a hidden effect was accepted. The thresho
 chosen on other seeds of another design (benchmarks/calibrate.py, seeds 0-5): the seeds here, from 100, chose
 nothing. Rows stream to OUT/rows.jsonl, seed by seed (every cell of a seed before the next seed): a rerun resumes,
 and the table covers whatever seeds are complete or partial. --markdown writes it into docs/diagnosis.md and its
-summary line into the README. `--variant` diagnoses the same campaigns with a cheaper configuration (VARIANTS) and
+summary line into the README. `--variant` diagnoses the same campaigns with another configuration (VARIANTS) and
 prints it against the default campaign by campaign: same outcome, same accepted effects, replays and minutes.
 """
 
@@ -49,11 +49,11 @@ from rc1_drake.synthesize import PAPER_DESIGN, Case, Noise, Variation, synthesiz
 PAGE, BLOCK, WRITER = REPO_ROOT / "docs" / "diagnosis.md", "paper-rates-table", "benchmarks/paper_rates.py --markdown"
 README, SUMMARY = REPO_ROOT / "README.md", "paper-rates-summary"
 J7_BIAS_DEG = next(c.bias_deg for c in PAPER_DESIGN if c.bias_deg)
-# Cheaper configurations of the diagnosis, judged against the default on the same campaigns (issue 42 item 2).
+# Other configurations of the diagnosis, judged against the default on the same campaigns (issue 42 item 2).
 VARIANTS = {
     "default": {},
     "keep-replay-error": {"replay_error": "start"},
-    "paired-replay-error": {"replay_error": "paired"},
+    "full-replay-error": {"replay_error": "full"},
 }
 
 

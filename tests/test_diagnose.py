@@ -481,14 +481,16 @@ def test_a_visible_hidden_effect_is_ranked_first_accepted_and_recovered(
 @pytest.mark.slow
 @pytest.mark.parametrize("mode", ["start", "paired"])
 def test_a_cheaper_replay_error_finds_the_same_toe_with_fewer_bootstraps(tmp_path, mode):
-    """The cheaper variants (replay_error "start" or "paired", judged at scale by benchmarks/paper_rates.py
-    --variant): the same toe accepted, its interval holding the truth; "start" measures the replay's own error only
+    """The cheaper ways to the replay's own error than measuring it at every model ("full"): the default "paired",
+    and "start" (judged at scale by benchmarks/paper_rates.py --variant): the same toe accepted, its interval
+    holding the truth; "start" measures the replay's own error only
     at the start, "paired" in full at the start and the accepted model and by linearize.PAIRED_DRAWS paired draws a
     trial at each polish step."""
     campaign = _campaign(tmp_path, {"wheel_toe_deg": 1.5})
     samples, log = PAIRED_DRAWS + 1, []
     options = dict(candidates=["wheel_toe", "head_drag"], input_noise_samples=samples, max_rounds=1)
-    full, cheap = _diagnose(campaign, **options), _diagnose(campaign, replay_error=mode, progress=log.append, **options)
+    full = _diagnose(campaign, replay_error="full", **options)
+    cheap = _diagnose(campaign, replay_error=mode, progress=log.append, **options)
     assert full.accepted == cheap.accepted == ["wheel_toe"]
     value, se = cheap.final_coordinates["wheel_toe_deg"]
     assert abs(value - 1.5) < Z95 * se

@@ -26,7 +26,7 @@ from .thresholds import THRESHOLDS, Thresholds
 from .verdict import verdict
 
 MAX_ROUNDS = 3
-REPLAY_ERROR_MODES = ("full", "paired", "start")
+REPLAY_ERROR_MODES = ("paired", "full", "start")
 FAR_LABEL = "today's model, friction searched (none identified at the start)"
 REFINED_CANDIDATES = 3  # the best candidates by the linear ranking, refined by a secant step before the checks
 CHECKED_CANDIDATES = 2  # of those, the best significant ones checked by simulation on held-out trials
@@ -50,7 +50,7 @@ def diagnose(
     thresholds: Thresholds = THRESHOLDS,
     checkpoint=None,
     on_round=None,
-    replay_error="full",
+    replay_error="paired",
 ) -> Diagnosis:
     """The loop (the package's docstring) on `campaign` (its `trials`, all by default), from the model (`friction`,
     `effects`); `candidates` are effect names or groups (effects.candidate_names; by default the physical effects,
@@ -60,10 +60,11 @@ def diagnose(
     START_FIT_S, for data whose start follows no known convention. `checkpoint`: a folder where every replay's result
     is kept as it arrives; a diagnosis interrupted and run again with it resumes where it stopped. `on_round(friction,
     effects, accepted)`: called with the model after each round that accepted an effect (so that a caller keeps it
-    whatever follows). `replay_error`: at each accepted and polished model the replay's own error is measured again
-    ("full", docs/diagnosis.md); at the polished ones moved from the accepted model's by the paired difference of
-    its first draws ("paired": linearize.PAIRED_DRAWS of six); or the start's kept ("start"). The cheaper two are
-    judged campaign by campaign by benchmarks/paper_rates.py --variant."""
+    whatever follows). `replay_error`: the replay's own error is measured again at each accepted model, and at each
+    polished one moved from the accepted model's by the paired difference of its first draws ("paired":
+    linearize.PAIRED_DRAWS of six, docs/diagnosis.md); measured again in full there too ("full"); or the start's
+    kept ("start"). The others are judged against the default campaign by campaign (benchmarks/paper_rates.py
+    --variant)."""
     started = time.perf_counter()
     if start_rates not in START_MODES:
         raise ValueError(f"start_rates must be one of {START_MODES}, got {start_rates!r}")
@@ -211,7 +212,7 @@ class _Search:
     accepted: list[str] = dataclasses.field(default_factory=list)
     rounds: list[Round] = dataclasses.field(default_factory=list)
     stop_reason: str = ""
-    replay_error: str = "full"  # at each accepted and polished model: one of REPLAY_ERROR_MODES
+    replay_error: str = "paired"  # at each accepted and polished model: one of REPLAY_ERROR_MODES
     friction_search: str = ""  # whether the friction was searched at the start, and what was decided (far_friction)
 
     @classmethod
