@@ -386,3 +386,12 @@ def test_an_interrupted_identification_resumes_from_its_checkpoint_with_the_same
     again = identify(campaign, checkpoint=tmp_path / "checkpoint", **options)
     assert again.resumed > 0 and again.simulations == whole.simulations
     assert again.friction == whole.friction and again.uncertainty.standard_errors == whole.uncertainty.standard_errors
+
+
+def test_a_program_fit_that_held_every_free_coefficient_says_how_to_start_nearer_the_data():
+    from rc1_drake.identify.run import held_warning
+
+    some = held_warning(["mu_long"], ["mu_lat", "mu_long"])
+    assert some == "held at the start values (not identifiable at the start): mu_long"
+    every = held_warning(["mu_lat", "mu_long"], ["mu_lat", "mu_long"])
+    assert every.startswith(some.replace("mu_long", "mu_lat, mu_long")) and "--method avs" in every

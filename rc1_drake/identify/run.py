@@ -174,7 +174,7 @@ def identify(
             on_fit(result)
     warnings = spread.warnings() if spread is not None else result.warnings()
     if method == "program" and result.held:
-        warnings.append(f"held at the start values (not identifiable at the start): {', '.join(result.held)}")
+        warnings.append(held_warning(result.held, [p.name for p in parameters if not p.frozen]))
     simulations, wall = result.simulations + (spread.simulations if spread else 0), time.perf_counter() - began
     errors = held_out_errors(
         estimation, held, result.friction, workers=workers, scheduler=scheduler, effects=effects, checkpoint=kept
@@ -192,3 +192,16 @@ def identify(
         record=record,
         resumed=kept.resumed if kept else 0,
     )
+
+
+def held_warning(held: list[str], free: list[str]) -> str:
+    """The program fit's warning for the coefficients the start's screen held; where it held every free one, what
+    to do: a start far from the data sees nothing (diagnose searches from it first: docs/diagnosis.md, step 2)."""
+    text = f"held at the start values (not identifiable at the start): {', '.join(held)}"
+    if set(free) <= set(held):
+        text += (
+            "; nothing was fitted: if the start's replays miss the data by far, the start may be far from them: "
+            "`rc1 identify --method avs` searches from it, and its model file (--out) starts a program fit there "
+            "(--start)"
+        )
+    return text
