@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import dataclasses
 import json
 import os
@@ -25,7 +26,7 @@ from .config import (
     Stop,
 )
 from .diagnose import INPUT_NOISE_SAMPLES as DIAGNOSE_NOISE_SAMPLES
-from .engine import ENGINES, make_session, use_engine
+from .engine import ENGINES, engine_for, make_session
 from .identify import INPUT_NOISE_SAMPLES
 from .reproduce import PAPER_TRIALS, TIME_LIMIT_S
 from .scenarios import DEFAULT_SCENARIOS, ModelFile, load_model_file, load_scenario, model_to_yaml, validate
@@ -1076,8 +1077,13 @@ def main(argv=None) -> int:
     args = make_parser().parse_args(argv)
     args.command_line = "rc1 " + " ".join(sys.argv[1:] if argv is None else argv)
     args.kept = []  # what a long command has written so far: named if it fails later
-    if getattr(args, "engine", None):
-        use_engine(args.engine)  # batch work and its worker processes follow it
+    engine = getattr(args, "engine", None)
+    with engine_for(engine) if engine else contextlib.nullcontext():  # batch work and its workers follow it
+        return _dispatch(args)
+
+
+def _dispatch(args) -> int:
+    """The parsed command, its errors as one line (an unforeseen one's traceback in a log)."""
     try:
         _check_outputs(args)
         return {

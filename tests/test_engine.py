@@ -8,6 +8,7 @@ figures leave room for the chaotic cases (a free joint 2) to amplify it.
 
 import dataclasses
 import math
+import os
 
 import numpy as np
 import pytest
@@ -222,3 +223,18 @@ def test_a_bad_engine_name_is_refused_with_the_variable_named(monkeypatch):
         use_engine("fast")
     with pytest.raises(ValueError, match="unknown engine 'fast'"):
         make_session(Scenario(), engine="fast")
+
+
+def test_a_command_run_in_process_leaves_the_processs_engine_as_it_found_it(monkeypatch):
+    """`rc1 run` defaults to the Drake engine; called in-process (tests, benchmarks) it must not leave batch work
+    here on it (seen: a later test's exact Jacobian found unavailable)."""
+    from rc1_drake.cli import main
+    from rc1_drake.engine import default_engine, engine_for
+
+    monkeypatch.delenv("RC1_ENGINE", raising=False)
+    assert main(["run", "--scenario", "no_such_scenario"]) == 2  # refused, after the engine was chosen
+    assert "RC1_ENGINE" not in os.environ and default_engine() == "compiled"
+    monkeypatch.setenv("RC1_ENGINE", "compiled")
+    with engine_for("drake"):
+        assert default_engine() == "drake"
+    assert default_engine() == "compiled"

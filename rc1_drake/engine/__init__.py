@@ -8,6 +8,7 @@ the same protocol.Run. Batch work (replays, fits, sweeps, campaigns) uses `defau
 
 from __future__ import annotations
 
+import contextlib
 import os
 
 ENGINES = ("drake", "compiled")
@@ -27,6 +28,21 @@ def use_engine(engine: str) -> None:
     if engine not in ENGINES:
         raise ValueError(f"unknown engine '{engine}' (known: {', '.join(ENGINES)})")
     os.environ[_VARIABLE] = engine
+
+
+@contextlib.contextmanager
+def engine_for(engine: str):
+    """`engine` the default of batch work (use_engine) while the block runs, the previous default after: a command
+    run in-process (a test, a benchmark) leaves the process's engine as it found it."""
+    previous = os.environ.get(_VARIABLE)
+    use_engine(engine)
+    try:
+        yield
+    finally:
+        if previous is None:
+            os.environ.pop(_VARIABLE, None)
+        else:
+            os.environ[_VARIABLE] = previous
 
 
 def make_session(scenario, *, engine: str | None = None, joint_reference=None):
