@@ -1,7 +1,7 @@
 """How often discovery names what the model is missing (issue 43 item 4): seeded campaigns with an effect hidden
 that the model discovery starts from lacks.
 
-    python benchmarks/discovery.py [--seeds 0-5] [--calibrate 0-2] [--cells CELL,...] [--workers 2]
+    python benchmarks/discovery.py [--seeds 0-5] [--calibrate 0-2] [--cells CELL,...] [--workers 2] [--angles]
                                    [--out benchmarks/out/discovery] [--markdown] [--table-only]
 
 Every campaign: two no-failure and two joint-7 trials of 2 s, with the synthesizer's sensor noise and start spread,
@@ -19,7 +19,9 @@ kept; MIN_GAIN the smallest at or above the shipped one that gives no calibratio
 the rows hold what any chosen gate reports) and the rates are reported on the other seeds, at the chosen and at the
 shipped gate. Scored per campaign: whether a term is reported, and whether one is the right one (right place, right
 variable, right sign: RIGHT), and how much of the held-out error the terms remove (by replay). Rows stream to
-OUT/rows.jsonl (a rerun resumes); --markdown writes the table into docs/diagnosis.md.
+OUT/rows.jsonl (a rerun resumes); --markdown writes the table into docs/diagnosis.md. --angles: discovery with the
+working joints' angles against the model's servos (`rc1 diagnose --discover --angles`), its rows in OUT-angles and
+its table in a block of its own.
 """
 
 import argparse
@@ -37,7 +39,13 @@ from rc1_drake.diagnose.discover import MIN_FALL, MIN_GAIN, best_gain, discover_
 from rc1_drake.measurements import load_campaign
 from rc1_drake.synthesize import Case, synthesize_campaign
 
-PAGE, BLOCK, WRITER = REPO_ROOT / "docs" / "diagnosis.md", "discovery-rates-table", "benchmarks/discovery.py --markdown"
+PAGE = REPO_ROOT / "docs" / "diagnosis.md"
+BLOCKS = {  # --angles -> (the table's block in PAGE, its writer)
+    False: ("discovery-rates-table", "benchmarks/discovery.py --markdown"),
+    True: ("discovery-angles-rates-table", "benchmarks/discovery.py --angles --markdown"),
+}
+# A tether's force, averaged over the gait: a constant pull backward along the tail (right with a negative sign).
+TETHER_MEAN = ("discrepancy_tail_push_long_N", -1)
 DESIGN = [Case([], 2), Case([7], 2)]
 SECONDS = 2.0
 C_LAT = Friction().c_lat
@@ -62,7 +70,7 @@ CELLS = [
          (("discrepancy_rear_drag_lat_N_s_per_m", -1), ("discrepancy_rear_dry_lat_N", -1))),
     Cell("tail tether 1 N", "drake", {"tail_tether_N": 1.0},
          tuple((f"discrepancy_tail_{k}", 1) for k in ("dry_long_N", "dry_lat_N", "drag_long_N_s_per_m",
-                                                         "drag_lat_N_s_per_m"))),
+                                                         "drag_lat_N_s_per_m")) + (TETHER_MEAN,)),
     Cell("wheel toe 1.5 deg", "drake", {"wheel_toe_deg": 1.5},
          tuple((f"discrepancy_{g}_side_by_long_N_s_per_m", 1) for g in ("front", "middle", "rear"))),
     Cell("nothing (reference.py)", "reference", {}, ()),
@@ -75,7 +83,7 @@ CELLS = [
          (("discrepancy_rear_drag_lat_N_s_per_m", -1), ("discrepancy_rear_dry_lat_N", -1))),
     Cell("tail tether 1 N (reference.py)", "reference", {"tail_tether_N": 1.0},
          tuple((f"discrepancy_tail_{k}", 1) for k in ("dry_long_N", "dry_lat_N", "drag_long_N_s_per_m",
-                                                         "drag_lat_N_s_per_m"))),
+                                                         "drag_lat_N_s_per_m")) + (TETHER_MEAN,)),
     Cell("floor seam 2 N m at x = 0.3 m (reference.py)", "reference", {"floor_seam_Nm": 2.0, "floor_seam_x_m": 0.3},
          None),
     Cell("wheel toe 1.5 deg (reference.py)", "reference", {"wheel_toe_deg": 1.5},
@@ -89,14 +97,16 @@ def one(cell: Cell, seed: int, args) -> dict:
         synthesize_campaign(folder, design=DESIGN, effects=cell.hidden, seed=seed, truth_model=cell.truth_model,
                             stop=Stop(line_x_m=None, revolutions=None, time_limit_s=SECONDS))  # fmt: skip
     started = time.perf_counter()
-    found = discover_campaign(load_campaign(folder).trials, Friction(), {}, workers=args.workers)
+    found = discover_campaign(load_campaign(folder).trials, Friction(), {}, workers=args.workers, angles=args.angles)
     return {
         "cell": cell.label,
         "seed": seed,
         "gain": best_gain(found.path, found.cost_without),
         "cost_without": found.cost_without,
+        "noise": found.noise,
         "terms": [{"key": t.key, "value": t.value, "se": t.standard_error, "words": t.words} for t in found.terms],
         "fall": found.fall,
+        "angle_fall": found.angle_fall,
         "simulations": found.simulations,
         "wall_s": time.perf_counter() - started,
     }
@@ -105,7 +115,8 @@ def one(cell: Cell, seed: int, args) -> dict:
 def reported(row: dict, min_fall: float, min_gain: float) -> bool:
     """Whether the gate (discover.passes_gate) lets the campaign's best sparse model through and a term of it stays
     off zero when refined (discover drops those at a zero bound; rows made before it kept them)."""
-    return passes_gate(row["gain"], row["cost_without"], min_fall, min_gain) and any(t["value"] for t in row["terms"])
+    gate = passes_gate(row["gain"], row["cost_without"], min_fall, min_gain, noise=row.get("noise", 0.0))
+    return gate and any(t["value"] for t in row["terms"])
 
 
 def is_right(row: dict, cell: Cell) -> bool:
@@ -123,7 +134,7 @@ def _cell(row: dict) -> Cell:
     return next(c for c in CELLS if c.label == row["cell"])
 
 
-def table(rows: list, calibration: set, cells: list) -> tuple:
+def table(rows: list, calibration: set, cells: list, writer: str) -> tuple:
     """(the markdown table on the reported seeds at the chosen and the shipped thresholds, its head)."""
     gain = chosen_gain(rows, calibration)
     shown = [r for r in rows if r["seed"] not in calibration]
@@ -140,7 +151,8 @@ def table(rows: list, calibration: set, cells: list) -> tuple:
         for g in (gain, MIN_GAIN):
             on = [r for r in mine if reported(r, MIN_FALL, g)]
             cols.append((len(on), sum(is_right(r, cell) for r in on)))
-        falls = [r["fall"] for r in mine if reported(r, MIN_FALL, gain)]
+        # with the angles, the fall of their excess over their noise (Discovery.angle_fall)
+        falls = [r["angle_fall" if r.get("noise") else "fall"] for r in mine if reported(r, MIN_FALL, gain)]
         lines.append(
             f"| {cell.label} | {len(mine)} | {cols[0][0]} / {cols[1][0]} | "
             + (f"{cols[0][1]} / {cols[1][1]}" if cell.right else "-")
@@ -148,7 +160,7 @@ def table(rows: list, calibration: set, cells: list) -> tuple:
         )
     seeds = sorted({r["seed"] for r in shown})
     head = (
-        f"Measured by `python benchmarks/discovery.py --markdown` (last run {time.strftime('%Y-%m-%d')}): "
+        f"Measured by `python {writer}` (last run {time.strftime('%Y-%m-%d')}): "
         f"{len(shown)} campaigns on seeds {', '.join(map(str, seeds)) or '-'}; the gate's MIN_GAIN chosen on seeds "
         f"{', '.join(map(str, sorted(calibration)))} ({gain:.3g}; shipped {MIN_GAIN:g}), MIN_FALL {MIN_FALL:g}:"
     )
@@ -161,7 +173,8 @@ def main():
     parser.add_argument("--calibrate", default="0-2", help="the seeds that choose the gate (reported: the others)")
     parser.add_argument("--cells", help="comma-separated cell labels (default: all)")
     parser.add_argument("--workers", type=int, default=2)
-    parser.add_argument("--out", type=Path, default=REPO_ROOT / "benchmarks" / "out" / "discovery")
+    parser.add_argument("--angles", action="store_true", help="discovery with the angles (module docstring)")
+    parser.add_argument("--out", type=Path, help="rows and campaigns (default benchmarks/out/discovery[-angles])")
     parser.add_argument("--markdown", action="store_true", help="write the table into docs/diagnosis.md")
     parser.add_argument("--table-only", action="store_true", help="print (and write) the table of the rows so far")
     args = parser.parse_args()
@@ -173,8 +186,10 @@ def main():
         seed_list, calibration = parse_seeds(args.seeds), set(parse_seeds(args.calibrate))
     except ValueError:
         raise SystemExit(f"--seeds/--calibrate: cannot read {args.seeds!r} / {args.calibrate!r} (e.g. 0-5)") from None
+    block, writer = BLOCKS[args.angles]
     if args.markdown:
-        check_block(PAGE, BLOCK, WRITER)
+        check_block(PAGE, block, writer)
+    args.out = args.out or REPO_ROOT / "benchmarks" / "out" / ("discovery-angles" if args.angles else "discovery")
     args.out.mkdir(parents=True, exist_ok=True)
     path = args.out / "rows.jsonl"
     rows = [json.loads(line) for line in path.read_text().splitlines()] if path.exists() else []
@@ -189,10 +204,10 @@ def main():
         cost = f"{row['wall_s'] / 60:.1f} min, {row['simulations']} jobs of ~100 runs"
         print(f"[{n + 1}/{len(jobs)}] {cell.label} seed {seed}: gain {row['gain']:.3g}, terms {terms}, fall "
               f"{100 * row['fall']:.0f}% ({cost})", flush=True)  # fmt: skip
-    body, head = table(rows, calibration, [known[c] for c in labels])
+    body, head = table(rows, calibration, [known[c] for c in labels], writer)
     print(head, body, sep="\n")
     if args.markdown:
-        write_block(PAGE, BLOCK, WRITER, head + "\n\n" + body)
+        write_block(PAGE, block, writer, head + "\n\n" + body)
 
 
 if __name__ == "__main__":

@@ -413,6 +413,13 @@ def _add_diagnose(sub) -> None:
         "wheels, tail and failed joints), name what survives and add it to the model file",
     )
     dgn.add_argument(
+        "--angles",
+        action="store_true",
+        help="with --discover: fit the working joints' measured angles too, against the model's servos driven by "
+        "each trial's command (the servos' tracking error is their load: it shows forces, such as a tether's, that "
+        "the kinematic replay cannot; the servos' gains are fitted with the terms)",
+    )
+    dgn.add_argument(
         "--input-noise-samples",
         type=_positive_int,
         default=DIAGNOSE_NOISE_SAMPLES,
@@ -919,6 +926,8 @@ def cmd_diagnose(args) -> int:
     from .diagnose import diagnose
     from .plots import candidates_figure, waterfall_figure
 
+    if args.angles and not args.discover:
+        raise Rc1Error("--angles fits the angles in discovery: give it with --discover")
     campaign = loaded_campaign(args.campaign)
     model = load_model_file(args.model_file) if args.model_file else ModelFile(friction=Friction())
     trials = None if not args.trials else [t.strip() for t in args.trials.split(",") if t.strip()]
@@ -993,7 +1002,7 @@ def _discover_after(args, result, out: Path, note: str, progress) -> None:
 
     found = discover_campaign(
         result.trials, result.friction, result.effects, workers=args.workers, scheduler=args.scheduler,
-        progress=progress,
+        progress=progress, angles=args.angles,
     )  # fmt: skip
     print(found.format())
     if found.terms:

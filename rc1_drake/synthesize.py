@@ -13,7 +13,19 @@ from pathlib import Path
 
 import numpy as np
 
-from .config import NUM_JOINTS, TRUTH_MODELS, Failure, Friction, Gait, Numerics, Rc1Error, Scenario, Start, Stop
+from .config import (
+    NUM_JOINTS,
+    TRUTH_MODELS,
+    Failure,
+    Friction,
+    Gait,
+    Numerics,
+    Rc1Error,
+    Scenario,
+    Servo,
+    Start,
+    Stop,
+)
 from .diagram import build_key
 from .effects import LIBRARY, commanded_gait, sensor_model
 from .engine import make_session
@@ -245,8 +257,9 @@ def _reference_run(scenario: Scenario, record_after_s: float, period: float) -> 
     return run, _recorded(scenario, record_after_s)
 
 
-def noise_free_twin(trial: Trial, *, friction: Friction, effects=None) -> Trial:
-    """`trial` as the model (friction, effects) makes it with no sensor noise, driven by the servos: the trial's
+def noise_free_twin(trial: Trial, *, friction: Friction, effects=None, servo: Servo | None = None) -> Trial:
+    """`trial` as the model (friction, effects; its servos `servo`, default Servo()) makes it with no sensor noise,
+    driven by the servos: the trial's
     gait, failures, start pose, stop rule and sample times, with a camera. Its run goes through the stop event to
     the replay's time limit (replay.replay_scenario) and its final position follows the replays' rule (the head's
     at the event, or at that limit if none comes), so that a replay of the twin has the trial's residual entries
@@ -260,6 +273,7 @@ def noise_free_twin(trial: Trial, *, friction: Friction, effects=None) -> Trial:
     x, y, head_yaw = (float(v) for v in trial.initial_head_pose)
     scenario = Scenario(
         gait=trial.gait,
+        servo=servo or Servo(),
         friction=friction,
         effects=effects,
         failures=[Failure(joint=j) for j in trial.failed_joints],

@@ -92,12 +92,60 @@ def test_a_discovery_that_fails_keeps_the_diagnosis_and_names_it(tmp_path, monke
 
 def test_a_term_refined_to_its_zero_bound_is_not_reported():
     """A drag clipped to its zero bound (it may not turn into a push) is the model without it: dropped with its
-    column; the others kept in order."""
+    column; the others kept in order, and the servos' gain columns (last) kept whatever the terms."""
     from rc1_drake.diagnose.discover import _without_zeros
 
     values = {"a": 0.3, "b": 0.0, "c": -1.2}
-    jacobian = np.arange(12.0).reshape(4, 3)
-    kept, (j, r, rows) = _without_zeros(values, (jacobian, np.ones(4), [2, 2]))
+    jacobian = np.arange(20.0).reshape(4, 5)
+    kept, (j, r, rows) = _without_zeros(values, (jacobian[:, :3], np.ones(4), [2, 2]), 0)
     assert kept == {"a": 0.3, "c": -1.2}
     np.testing.assert_array_equal(j, jacobian[:, [0, 2]])
-    assert _without_zeros({"b": 0.0}, (jacobian[:, 1:2], np.ones(4), [4]))[0] == {}
+    assert _without_zeros({"b": 0.0}, (jacobian[:, 1:2], np.ones(4), [4]), 0)[0] == {}
+    kept, (j, _, _) = _without_zeros(values, (jacobian, np.ones(4), [2, 2]), 2)
+    np.testing.assert_array_equal(j, jacobian[:, [0, 2, 3, 4]])
+
+
+def _angle_chi2(trial, effects):
+    """chi-square per row of `trial`'s angles against this model's servos with `effects` (angle_residual)."""
+    from rc1_drake.synthesize import noise_free_twin
+    from rc1_drake.sysid.residual import angle_residual, angle_rows
+
+    r = angle_residual(trial, noise_free_twin(trial, friction=Friction(), effects=effects))
+    assert len(r) == angle_rows(trial) and np.isfinite(r).all()
+    return float(r @ r) / len(r)
+
+
+def test_a_tether_shows_in_the_angles_the_servos_reach_above_the_potentiometers_noise(tmp_path):
+    """A servo's tracking error is its load: with a 2 N tail tether hidden (0.25 deg of potentiometer noise), the
+    model's servos driven by the trial's command reach the measured angles to the noise with the tether (chi-square
+    per row near 1) and measurably not without it; the failed joint has no rows."""
+    synthesize_campaign(tmp_path, design=[Case([7], 1)], effects={"tail_tether_N": 2.0}, seed=3,
+                        stop=Stop(line_x_m=None, revolutions=None, time_limit_s=3.0))  # fmt: skip
+    (trial,) = load_campaign(tmp_path).trials
+    with_tether, without = _angle_chi2(trial, {"tail_tether_N": 2.0}), _angle_chi2(trial, {})
+    assert 0.7 < with_tether < 1.3
+    assert without > with_tether + 0.3
+
+
+@pytest.mark.slow
+def test_a_hidden_tail_force_is_recovered_from_the_angles_with_the_servos_gains(tmp_path):
+    """Noise-free round trip of the angle channel: a constant 1 N pull backward along the tail (a tether's mean) comes
+    back to 5% as one term, with the servos' gains fitted alongside at the truth's. The tail always rolls forward, so
+    a dry drag against its longitudinal velocity is the same force: either term is the right answer."""
+    trials = _noise_free(tmp_path, {"discrepancy_tail_push_long_N": -1.0})
+    found = discover(trials, Friction(), {}, angles=True)
+    same = {"discrepancy_tail_push_long_N": -1.0, "discrepancy_tail_dry_long_N": 1.0}
+    assert len(found.terms) == 1 and found.terms[0].key in same, found.format()
+    (term,) = found.terms
+    assert term.value == pytest.approx(same[term.key], rel=0.05)
+    assert found.fall > 0.9
+    assert found.servo.kp_Nm_per_rad == pytest.approx(20.0, rel=0.01)
+    assert "the servos as the measured angles show them" in found.format()
+
+
+def test_angles_without_discover_is_a_one_line_error(capsys):
+    from rc1_drake.cli import main
+
+    assert main(["diagnose", "data/paper_campaign", "--angles"]) == 2
+    (line,) = capsys.readouterr().err.strip().splitlines()
+    assert line == "rc1 diagnose: error: --angles fits the angles in discovery: give it with --discover"

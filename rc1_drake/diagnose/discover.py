@@ -8,7 +8,11 @@ coordinate at once). The sparse fit is orthogonal matching pursuit (scikit-learn
 dozens of correlated columns, PySINDy's thresholded least squares (STLSQ) kept large cancelling coefficients and
 lost the true term (docs/findings.md). How many terms is chosen by leaving one trial out: the fewest whose
 held-out cost is within one standard error of the best, and none
-at all unless it removes MIN_FALL and MIN_GAIN of the held-out cost without terms."""
+at all unless it removes MIN_FALL and MIN_GAIN of the held-out cost without terms.
+
+With `angles`, each trial also contributes its working joints' measured angles against the model's servos driven
+by the trial's command (sysid.residual.angle_residual: a servo's tracking error is its load, which the kinematic
+replay cannot see), and the servos' gains are fitted with the terms (nuisance coordinates, always in)."""
 
 import dataclasses
 import math
@@ -17,14 +21,21 @@ import os
 import numpy as np
 from scipy.linalg import block_diag
 
-from ..config import Friction, Rc1Error
+from ..config import Friction, Rc1Error, Servo
 from ..effects import LIBRARY, candidate_names, coordinate_owner, parameter, parameter_owner, shifted
 from ..engine.session import sensitivity_parameters
 from ..executor import make_executor
 from ..replay import Replayer
 from ..sysid.evaluate import Evaluator
 from ..sysid.input_noise import INPUT_NOISE_SAMPLES, bootstrap_twin, input_noise_covariance
-from ..sysid.residual import replay_residual, replay_residual_and_jacobian, residual_channels, trial_residual
+from ..sysid.residual import (
+    angle_residual,
+    angle_rows,
+    replay_residual,
+    replay_residual_and_jacobian,
+    residual_channels,
+    trial_residual,
+)
 from ..sysid.stats import Z95, channel_variances, sandwich
 
 SIZES = (1, 2, 3, 4)  # how many terms a sparse model may have: a missing effect is one or two mechanisms
@@ -36,6 +47,10 @@ MIN_GAIN = 3.84
 REFINEMENTS = 2  # Gauss-Newton steps on the surviving terms, by replay
 HALVINGS = 4  # of a step whose runs fail or whose cost rises
 MATCH_COSINE = 0.98  # a term "matches" a library coordinate whose column is this parallel to its prediction
+# With the angles: the servos' gains, fitted as log multipliers of the model's (always in, as nuisance coordinates),
+# their columns by forward differences of this step.
+SERVO_GAINS = ("kp_Nm_per_rad", "kd_Nm_s_per_rad", "ki_Nm_per_rad_s")
+GAIN_STEP = 0.02
 WHERE = {
     "head": "the head's centre",
     "front": "the wheels of modules 2-5",
@@ -69,18 +84,36 @@ class Discovery:
     heldout_after: float  # by replay: each trial with terms fitted on the other trials
     effects: dict[str, float]  # the final model's effects with the terms added
     simulations: int
+    servo: Servo | None = None  # with the angles: the servos as their tracking shows them (fitted with the terms)
+    noise: float = 0.0  # what the angle rows cost at the truth (their count: each standardized by its noise)
+    angles_before: float = 0.0  # the angle rows' share of heldout_before and heldout_after
+    angles_after: float = 0.0
 
     @property
     def fall(self) -> float:
-        """The fraction of the held-out error the terms remove (by replay)."""
-        return 1.0 - self.heldout_after / self.heldout_before if self.heldout_before else 0.0
+        """The fraction of the held-out error beyond the angle rows' noise that the terms remove (by replay)."""
+        excess = self.heldout_before - self.noise
+        return 1.0 - (self.heldout_after - self.noise) / excess if excess > 0 else 0.0
+
+    @property
+    def angle_fall(self) -> float:
+        """The fraction of the angle rows' held-out error beyond their noise that the terms remove (by replay)."""
+        excess = self.angles_before - self.noise
+        return 1.0 - (self.angles_after - self.noise) / excess if excess > 0 else 0.0
 
     def format(self) -> str:
         lines = ["Discovery (the discrepancy model, sparse, its sparsity chosen on held-out trials):"]
+        if self.servo is not None and self.terms:
+            s = self.servo
+            lines.append(
+                f"  the servos as the measured angles show them: Kp {s.kp_Nm_per_rad:.3g} N m/rad, "
+                f"Kd {s.kd_Nm_s_per_rad:.3g} N m s/rad, Ki {s.ki_Nm_per_rad_s:.3g} N m/(rad s)"
+            )
         if not self.terms:
             lines.append(
                 f"  no term earns its place: the best sparse model removes less than {100 * MIN_FALL:.0f}% or "
-                f"{MIN_GAIN:g} of the held-out cost without terms ({self.cost_without:.4g})"
+                f"{MIN_GAIN:g} of the held-out cost without terms ({self.cost_without:.4g}"
+                + (f", of which {self.noise:.4g} the angles' noise)" if self.noise else ")")
             )
             return "\n".join(lines)
         for t in self.terms:
@@ -88,10 +121,17 @@ class Discovery:
             lines.append(f"  {t.key} = {t.value:.3g} (95%: {low:.3g} .. {high:.3g}): {t.words}")
             for m in t.matches:
                 lines.append(f"      its shape matches {m['name']} (cos {m['cosine']:.2f}) at {m['value']:.3g}")
+        beyond = f" of what the angles' noise ({self.noise:.4g}) leaves" if self.noise else ""
         lines.append(
             f"  held-out error (each trial replayed with terms fitted without it): {self.heldout_before:.4g} -> "
-            f"{self.heldout_after:.4g} ({100 * self.fall:.0f}% removed)"
+            f"{self.heldout_after:.4g} ({100 * self.fall:.0f}% removed{beyond})"
         )
+        if self.noise:
+            lines.append(
+                f"    of it the angles': {self.angles_before:.4g} -> {self.angles_after:.4g} against their noise's "
+                f"{self.noise:.4g} ({100 * self.angle_fall:.0f}% of the excess removed); the path's: "
+                f"{self.heldout_before - self.angles_before:.4g} -> {self.heldout_after - self.angles_after:.4g}"
+            )
         return "\n".join(lines)
 
 
@@ -134,72 +174,142 @@ def discover(
     *,
     evaluator: Evaluator | None = None,
     sizes=SIZES,
+    angles: bool = False,
 ) -> Discovery:
     """The discrepancy model fitted to `trials` at the model (`friction`, `effects`), on their residuals with the
-    replay's own miss on the model's motion taken off (corrected_residual)."""
+    replay's own miss on the model's motion taken off (corrected_residual); with `angles`, also on the working
+    joints' angles against the model's servos, whose gains are fitted with the terms (module docstring)."""
     evaluator = evaluator or Evaluator(None)
     start = evaluator.simulations
     keys, library = discrepancy_keys(trials), library_coordinates()
+    view = _View(Servo(), angles)
     parts = evaluator.map(
         corrected_and_jacobian,
-        [(t, friction, effects, tuple(keys + library)) for t in trials],
+        [(t, friction, effects, tuple(keys + library), view) for t in trials],
         "the discrepancy's columns (replays and twins)",
     )
     r = [p[0] for p in parts]
     columns = [p[1][:, : len(keys)] for p in parts]
-    library_columns = np.vstack([p[1][:, len(keys) :] for p in parts])
+    library_columns = np.vstack([p[1][:, len(keys) : len(keys) + len(library)] for p in parts])
+    r, columns = _without_nuisance(r, columns, [p[1][:, len(keys) + len(library) :] for p in parts])
     path, cost_without = _sparsity_path(r, columns, sizes)
-    chosen = _choose(path, cost_without)
+    noise = float(sum(angle_rows(t) for t in trials)) if angles else 0.0
+    chosen = _choose(path, cost_without, noise)
     if chosen is None:
         spent = evaluator.simulations - start
-        return Discovery([], path, float(cost_without.sum()), 0.0, 0.0, dict(effects), spent)
+        return Discovery([], path, float(cost_without.sum()), 0.0, 0.0, dict(effects), spent, noise=noise)
     support = [keys[j] for j in chosen["support"]]
     values = dict(zip(support, chosen["values"], strict=True))
-    values, fitted = _without_zeros(*_refined(trials, friction, effects, values, evaluator))
+    values, fitted, view = _refined(trials, friction, effects, values, evaluator, view)
+    values, fitted = _without_zeros(values, fitted, len(view.gains))
     if not values:  # every term refined to a zero bound: the model without them
-        return Discovery([], path, float(cost_without.sum()), 0.0, 0.0, dict(effects), evaluator.simulations - start)
+        spent = evaluator.simulations - start
+        return Discovery([], path, float(cost_without.sum()), 0.0, 0.0, dict(effects), spent, noise=noise)
     model = {**effects, **values}
     errors = _standard_errors(trials, friction, model, fitted, evaluator)
     before = sum(float(x @ x) for x in r)
-    after = _held_out_by_replay(trials, friction, model, values, fitted, evaluator)
+    held = _held_out_by_replay(trials, friction, model, values, fitted, evaluator, view)
+    after = sum(float(x @ x) for x in held)
+    counts = [angle_rows(t) if angles else 0 for t in trials]
+    angles_before, angles_after = (
+        sum(float(x[len(x) - n :] @ x[len(x) - n :]) for x, n in zip(rs, counts, strict=True)) for rs in (r, held)
+    )
     terms = []
     for j, (key, value) in enumerate(values.items()):
         name = parameter_owner(key).name
         matches = _matches(fitted[0][:, j] * value, library_columns, library)
         terms.append(Term(name, key, value, float(errors[j]), term_words(name, value), matches))
-    return Discovery(terms, path, float(cost_without.sum()), before, after, model, evaluator.simulations - start)
+    spent = evaluator.simulations - start
+    servo = view.servo if angles else None
+    return Discovery(
+        terms, path, float(cost_without.sum()), before, after, model, spent, servo, noise, angles_before, angles_after
+    )
 
 
-def discover_campaign(trials, friction: Friction, effects: dict, *, workers=None, scheduler=None, progress=None):
+def discover_campaign(
+    trials, friction: Friction, effects: dict, *, workers=None, scheduler=None, progress=None, angles=False
+):
     """discover() with its replays on an executor (all local cores by default; Dask's at `scheduler`)."""
     with make_executor(workers=workers or min(os.cpu_count() or 1, len(trials)), scheduler=scheduler) as executor:
-        return discover(trials, friction, effects, evaluator=Evaluator(executor, progress))
+        return discover(trials, friction, effects, evaluator=Evaluator(executor, progress), angles=angles)
 
 
-def twin_residual(trial, friction: Friction, effects) -> np.ndarray:
-    """The replay's own miss on this trial's motion as the model makes it: the trial's noise-free twin (the model
+@dataclasses.dataclass(frozen=True)
+class _View:
+    """What a trial's residual holds besides the path: with `angles`, the angle rows, made by servos `servo`."""
+
+    servo: Servo
+    angles: bool
+
+    @property
+    def gains(self) -> tuple:
+        return SERVO_GAINS if self.angles else ()
+
+    def moved(self, steps) -> "_View":
+        """The servos with each gain multiplied by exp(step) (SERVO_GAINS' order)."""
+        changes = {g: getattr(self.servo, g) * math.exp(float(h)) for g, h in zip(self.gains, steps, strict=True)}
+        return dataclasses.replace(self, servo=dataclasses.replace(self.servo, **changes))
+
+
+PATH_ONLY = _View(Servo(), False)
+
+
+def _twin_parts(trial, friction: Friction, effects, view: _View) -> tuple:
+    """The replay's own miss on this trial's motion as the model makes it — the trial's noise-free twin (the model
     driven by the gait from the trial's start, with its camera misses; sysid.input_noise.bootstrap_twin) replayed
-    at the model. The diagnosis's bias, without its noise draws."""
-    twin = bootstrap_twin(trial, friction, effects)[0]
-    return trial_residual(twin, Replayer(twin).run(friction, effects))
+    at the model: the diagnosis's bias, without its noise draws — and, with the angles, the twin's angles against
+    the measured ones (sysid.residual.angle_residual; else empty)."""
+    twin = bootstrap_twin(trial, friction, effects, view.servo)[0]
+    path = trial_residual(twin, Replayer(twin).run(friction, effects))
+    return path, angle_residual(trial, twin) if view.angles else np.zeros(0)
 
 
-def corrected_residual(trial, friction: Friction, effects) -> np.ndarray:
+def corrected_residual(trial, friction: Friction, effects, view: "_View" = None) -> np.ndarray:
     """A trial's residuals less the replay's own miss on the model's motion: a term moves them both along the
     measured angles (the replay) and through the motion the servos make of the gait (the twin); on a wheeled
-    body held to its path the second is most of it (docs/findings.md)."""
-    return replay_residual(trial, friction, effects) - twin_residual(trial, friction, effects)
+    body held to its path the second is most of it (docs/findings.md). With the angles, their rows follow."""
+    view = view or PATH_ONLY
+    path, angles = _twin_parts(trial, friction, effects, view)
+    return np.concatenate([replay_residual(trial, friction, effects) - path, angles])
 
 
-def corrected_and_jacobian(trial, friction: Friction, effects, names) -> tuple:
-    """corrected_residual and its columns by `names`: the replay's exact (its sensitivities), the twin's by a
-    forward difference over each coordinate's probe step."""
+def corrected_and_jacobian(trial, friction: Friction, effects, names, view: "_View" = None) -> tuple:
+    """corrected_residual and its columns by `names`, then by the servos' gains (with the angles): the replay's
+    exact (its sensitivities), the twin's by a forward difference over each coordinate's probe step (GAIN_STEP)."""
+    view = view or PATH_ONLY
     r, jac = replay_residual_and_jacobian(trial, friction, effects, names)
-    base = twin_residual(trial, friction, effects)
-    for j, name in enumerate(names):
-        h = next(p.probe_step for p in coordinate_owner(name).coordinate_space() if p.key == name)
-        jac[:, j] -= (twin_residual(trial, friction, shifted(effects, name, h)) - base) / h
-    return r - base, jac
+    base_path, base_angles = _twin_parts(trial, friction, effects, view)
+    n = len(r)
+    out = np.zeros((n + len(base_angles), len(names) + len(view.gains)))
+    out[:n, : len(names)] = jac
+    moves = [(name, shifted(effects, name, _probe(name)), view, _probe(name)) for name in names]
+    for k in range(len(view.gains)):
+        steps = np.zeros(len(view.gains))
+        steps[k] = GAIN_STEP
+        moves.append((view.gains[k], effects, view.moved(steps), GAIN_STEP))
+    for j, (_, moved_effects, moved_view, h) in enumerate(moves):
+        path, angles = _twin_parts(trial, friction, moved_effects, moved_view)
+        out[:n, j] -= (path - base_path) / h
+        out[n:, j] = (angles - base_angles) / h
+    return np.concatenate([r - base_path, base_angles]), out
+
+
+def _probe(name: str) -> float:
+    return next(p.probe_step for p in coordinate_owner(name).coordinate_space() if p.key == name)
+
+
+def _without_nuisance(r, columns, nuisance) -> tuple:
+    """The residuals and columns with the nuisance columns' span (the servos' gains) projected out, over all trials
+    together: the sparse fit then chooses among the terms with the gains fitted alongside."""
+    if not nuisance or nuisance[0].shape[1] == 0:
+        return r, columns
+    q = np.linalg.qr(np.vstack(nuisance))[0]
+    ends = np.cumsum([0, *(len(x) for x in r)])
+    r_all, x_all = np.concatenate(r), np.vstack(columns)
+    r_all, x_all = r_all - q @ (q.T @ r_all), x_all - q @ (q.T @ x_all)
+    return [r_all[a:b] for a, b in zip(ends[:-1], ends[1:], strict=True)], [
+        x_all[a:b] for a, b in zip(ends[:-1], ends[1:], strict=True)
+    ]
 
 
 def _sparse_fit(x, y, size):
@@ -240,17 +350,18 @@ def best_gain(path, cost_without) -> float:
     return max((float(np.sum(cost_without) - p["held"].sum()) for p in with_terms), default=0.0)
 
 
-def passes_gate(gain: float, cost_without, min_fall=MIN_FALL, min_gain=MIN_GAIN) -> bool:
+def passes_gate(gain: float, cost_without, min_fall=MIN_FALL, min_gain=MIN_GAIN, noise: float = 0.0) -> bool:
     """Whether a sparse model that removes `gain` of the held-out cost without terms (`cost_without`, per trial or
-    summed) may be reported: at least `min_fall` of that cost and at least `min_gain`."""
-    return gain >= min_gain and gain >= min_fall * float(np.sum(cost_without))
+    summed) may be reported: at least `min_fall` of that cost beyond `noise` (what rows standardized by their own
+    noise cost at the truth: the angle rows' count) and at least `min_gain`."""
+    return gain >= min_gain and gain >= min_fall * max(float(np.sum(cost_without)) - noise, 0.0)
 
 
-def _choose(path, cost_without):
+def _choose(path, cost_without, noise: float = 0.0):
     """The fewest terms within a standard error of the best held-out cost, if the best passes the gate
     (passes_gate); else None."""
     with_terms = [p for p in path if p["support"]]
-    if not with_terms or not passes_gate(best_gain(path, cost_without), cost_without):
+    if not with_terms or not passes_gate(best_gain(path, cost_without), cost_without, noise=noise):
         return None
     best = min(with_terms, key=lambda p: p["held"].sum())
     gain_per_trial = cost_without - best["held"]
@@ -258,16 +369,17 @@ def _choose(path, cost_without):
     return min((p for p in with_terms if p["held"].sum() <= limit), key=lambda p: p["size"])
 
 
-def _refined(trials, friction, effects, values, evaluator) -> tuple:
-    """Gauss-Newton steps on the surviving terms (their bounds kept), each halved while a replay fails or the cost
-    rises: (values, (their Jacobian, the residual, each trial's row count) there)."""
+def _refined(trials, friction, effects, values, evaluator, view: _View) -> tuple:
+    """Gauss-Newton steps on the surviving terms (their bounds kept) and the servos' gains (with the angles), each
+    halved while a replay fails or the cost rises: (values, (their Jacobian, the residual, each trial's row count)
+    there, the view with the servos there)."""
     keys = list(values)
 
-    def at(v):
+    def at(v, vw):
         try:
             parts = evaluator.map(
                 corrected_and_jacobian,
-                [(t, friction, {**effects, **v}, tuple(keys)) for t in trials],
+                [(t, friction, {**effects, **v}, tuple(keys), vw) for t in trials],
                 "the discovered terms refined",
             )
         except Rc1Error:  # a run blew up at these values
@@ -275,35 +387,38 @@ def _refined(trials, friction, effects, values, evaluator) -> tuple:
         return np.concatenate([p[0] for p in parts]), np.vstack([p[1] for p in parts]), [len(p[0]) for p in parts]
 
     values = _clipped(values)
-    here = at(values)
+    here = at(values, view)
     for _ in range(HALVINGS):  # the linear fit's values may be too far for the runs: toward the model
         if here is not None:
             break
         values = {k: 0.5 * x for k, x in values.items()}
-        here = at(values)
+        here = at(values, view)
     if here is None:
         raise Rc1Error(f"discovery: every run with {', '.join(keys)} failed, even at 1/{2**HALVINGS} of the fit")
     for _ in range(REFINEMENTS):
         move = np.linalg.lstsq(here[1], -here[0], rcond=None)[0]
         for _ in range(HALVINGS):
-            proposal = _clipped({k: values[k] + m for k, m in zip(keys, move, strict=True)})
-            there = at(proposal)
+            proposal = _clipped({k: values[k] + m for k, m in zip(keys, move[: len(keys)], strict=True)})
+            moved = view.moved(move[len(keys) :])
+            there = at(proposal, moved)
             if there is not None and there[0] @ there[0] < here[0] @ here[0]:
-                values, here = proposal, there
+                values, view, here = proposal, moved, there
                 break
             move = 0.5 * move
         else:
             break
-    return values, (here[1], here[0], here[2])
+    return values, (here[1], here[0], here[2]), view
 
 
-def _without_zeros(values: dict, fitted: tuple) -> tuple:
+def _without_zeros(values: dict, fitted: tuple, gains: int) -> tuple:
     """(values, fitted) without the terms at exactly 0 (a term clipped to its zero bound, a drag that may not turn
-    into a push: the model without it, not a finding), their Jacobian columns with them."""
+    into a push: the model without it, not a finding), their Jacobian columns with them (the servos' `gains`
+    columns, last, kept)."""
     keys = list(values)
     keep = [j for j, k in enumerate(keys) if values[k] != 0.0]
     jacobian, residual, rows = fitted
-    return {keys[j]: values[keys[j]] for j in keep}, (jacobian[:, keep], residual, rows)
+    columns = keep + list(range(len(keys), len(keys) + gains))
+    return {keys[j]: values[keys[j]] for j in keep}, (jacobian[:, columns], residual, rows)
 
 
 def _standard_errors(trials, friction, model, fitted, evaluator) -> np.ndarray:
@@ -312,13 +427,15 @@ def _standard_errors(trials, friction, model, fitted, evaluator) -> np.ndarray:
     replays' input causes (INPUT_NOISE_SAMPLES resampled replays per trial): as white residuals, the interval of a
     failed joint's bias on a noisy campaign missed the truth (docs/findings.md)."""
     jac, residual, sizes = fitted
-    channels = np.concatenate([residual_channels(np.zeros(n)) for n in sizes])
-    spread = np.diag(channel_variances(residual, channels, jac.shape[1]))
     blocks = evaluator.map(
         input_noise_covariance,
         [(t, friction, model, INPUT_NOISE_SAMPLES, k) for k, t in enumerate(trials)],
         "the input noise at the discovered terms",
     )
+    # The angle rows (after a trial's path rows) follow no replay: their noise is the potentiometers', white.
+    blocks = [np.pad(b, (0, n - len(b))) for b, n in zip(blocks, sizes, strict=True)]
+    channels = np.concatenate([residual_channels(np.zeros(n), n - len(b)) for b, n in zip(blocks, sizes, strict=True)])
+    spread = np.diag(channel_variances(residual, channels, jac.shape[1]))
     cov, null = sandwich(jac, spread + block_diag(*blocks))
     return np.where(null, np.inf, np.sqrt(np.clip(np.diag(cov), 0.0, None)))
 
@@ -328,18 +445,18 @@ def _clipped(values: dict) -> dict:
     return {key: float(np.clip(value, parameter(key).lower, parameter(key).upper)) for key, value in values.items()}
 
 
-def _held_out_by_replay(trials, friction, model, values, fitted, evaluator) -> float:
-    """The sum over trials of each one's squared residuals replayed with the terms refitted (linearly, from the
-    final fit) on the other trials."""
+def _held_out_by_replay(trials, friction, model, values, fitted, evaluator, view: _View) -> list:
+    """Each trial's residuals replayed with the terms (and the servos' gains) refitted (linearly, from the final fit)
+    on the other trials."""
     jac, residual, sizes = fitted
     ends = np.cumsum([0, *sizes])
     jobs = []
     for k, t in enumerate(trials):
         rows = np.r_[0 : ends[k], ends[k + 1] : ends[-1]]
         move = np.linalg.lstsq(jac[rows], -residual[rows], rcond=None)[0]
-        moved = {key: values[key] + m for key, m in zip(values, move, strict=True)}
-        jobs.append((t, friction, {**model, **_clipped(moved)}))
-    return sum(float(x @ x) for x in evaluator.map(corrected_residual, jobs, "each trial held out"))
+        moved = {key: values[key] + m for key, m in zip(values, move[: len(values)], strict=True)}
+        jobs.append((t, friction, {**model, **_clipped(moved)}, view.moved(move[len(values) :])))
+    return evaluator.map(corrected_residual, jobs, "each trial held out")
 
 
 def _matches(prediction, library_columns, names) -> list[dict]:

@@ -43,9 +43,10 @@ def replay_error(trial, friction, effects, samples: int, seed: int) -> tuple:
     return draws_mean_and_covariance([bootstrap_draw(*made, friction, effects, seed, i) for i in range(samples)])[:2]
 
 
-def bootstrap_twin(trial, friction, effects) -> tuple:
-    """replay_error's twin, with the trial's camera misses, and the trial's angle noise (rad)."""
-    twin = noise_free_twin(trial, friction=friction, effects=effects)
+def bootstrap_twin(trial, friction, effects, servo=None) -> tuple:
+    """replay_error's twin (the model's servos `servo`, default config.Servo()), with the trial's camera misses, and
+    the trial's angle noise (rad)."""
+    twin = noise_free_twin(trial, friction=friction, effects=effects, servo=servo)
     if trial.initial_head_rates is None:  # replayed from the convention, as the trial is
         twin = dataclasses.replace(twin, initial_head_rates=None)
     camera = None

@@ -13,6 +13,9 @@ from .evaluate import replay, replayer
 
 RESIDUAL_PERIOD_S = 0.1  # s between a path's residuals, whatever the sampling rate
 FINAL_CHANNEL, PATH_CHANNEL = 0, 1  # the final position (by hand); the camera path or yaw rate over time
+ANGLE_CHANNEL = 2  # the working joints' angles against the model's servos (angle_residual)
+# The least potentiometer noise an angle residual is standardized by (a noise-free trial's smoothing finds none).
+ANGLE_NOISE_FLOOR_RAD = 1e-4
 
 
 def trial_residual(trial, run) -> np.ndarray:
@@ -52,10 +55,31 @@ def trial_residual(trial, run) -> np.ndarray:
     return np.concatenate(parts)
 
 
-def residual_channels(residual) -> np.ndarray:
-    """Which channel each of one trial's residuals (trial_residual) belongs to: its first two are the final
-    position, the rest the camera path or the yaw rate."""
-    return np.r_[FINAL_CHANNEL, FINAL_CHANNEL, np.full(len(residual) - 2, PATH_CHANNEL)]
+def residual_channels(residual, angles: int = 0) -> np.ndarray:
+    """Which channel each of one trial's residuals (trial_residual, then `angles` rows of angle_residual) belongs
+    to: its first two are the final position, then the camera path or the yaw rate, then the angles."""
+    path = len(residual) - 2 - angles
+    return np.r_[FINAL_CHANNEL, FINAL_CHANNEL, np.full(path, PATH_CHANNEL), np.full(angles, ANGLE_CHANNEL)]
+
+
+def angle_residual(trial, twin) -> np.ndarray:
+    """The working joints' angles of `twin` — the trial as the model's servos make it from its command
+    (synthesize.noise_free_twin, read by the model's potentiometers) — against the trial's measured angles, every
+    RESIDUAL_PERIOD_S, joint after joint, standardized by the potentiometers' noise as the trial's smoothing
+    estimates it. A servo's tracking error is its load: a force the kinematic replay cannot see (it follows the
+    measured angles, whatever torque that takes) moves the angles the servos reach (docs/findings.md)."""
+    t = trial.t - trial.t[0]
+    step = max(1, int(round(RESIDUAL_PERIOD_S / (t[1] - t[0]))))
+    working = [j - 1 for j in trial.working_joints]
+    sigma = max(replayer(trial).angle_noise_rad(), ANGLE_NOISE_FLOOR_RAD)
+    return ((twin.q[::step, working] - trial.q[::step, working]) / sigma).T.ravel()
+
+
+def angle_rows(trial) -> int:
+    """How many rows angle_residual gives for `trial`."""
+    t = trial.t - trial.t[0]
+    step = max(1, int(round(RESIDUAL_PERIOD_S / (t[1] - t[0]))))
+    return len(t[::step]) * len(trial.working_joints)
 
 
 def residual_jacobian(trial, run, residual) -> np.ndarray:
