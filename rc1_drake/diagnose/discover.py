@@ -193,7 +193,8 @@ def discover(
     library_columns = np.vstack([p[1][:, len(keys) : len(keys) + len(library)] for p in parts])
     r, columns = _without_nuisance(r, columns, [p[1][:, len(keys) + len(library) :] for p in parts])
     path, cost_without = _sparsity_path(r, columns, sizes)
-    noise = float(sum(angle_rows(t) for t in trials)) if angles else 0.0
+    counts = [angle_rows(t) if angles else 0 for t in trials]  # each trial's angle rows, last in its residual
+    noise = float(sum(counts))
     chosen = _choose(path, cost_without, noise)
     if chosen is None:
         spent = evaluator.simulations - start
@@ -210,7 +211,6 @@ def discover(
     before = sum(float(x @ x) for x in r)
     held = _held_out_by_replay(trials, friction, model, values, fitted, evaluator, view)
     after = sum(float(x @ x) for x in held)
-    counts = [angle_rows(t) if angles else 0 for t in trials]
     angles_before, angles_after = (
         sum(float(x[len(x) - n :] @ x[len(x) - n :]) for x, n in zip(rs, counts, strict=True)) for rs in (r, held)
     )

@@ -30,9 +30,8 @@ def trial_residual(trial, run) -> np.ndarray:
     systematic error that biases the fit more than it informs it; the camera's positions match to ~2 mm at the
     true coefficients (measured on a 3 s joint-7 trial)."""
     t = trial.t - trial.t[0]
-    step = max(1, int(round(RESIDUAL_PERIOD_S / (t[1] - t[0]))))
     keep = np.zeros(len(t), dtype=bool)
-    keep[::step] = True
+    keep[every_period(trial)] = True
     keep &= t <= run.scenario.stop.time_limit_s + 1e-9
     if run.t[-1] < t[keep][-1] - 1e-9:
         raise ValueError(
@@ -68,18 +67,19 @@ def angle_residual(trial, twin) -> np.ndarray:
     RESIDUAL_PERIOD_S, joint after joint, standardized by the potentiometers' noise as the trial's smoothing
     estimates it. A servo's tracking error is its load: a force the kinematic replay cannot see (it follows the
     measured angles, whatever torque that takes) moves the angles the servos reach (docs/findings.md)."""
-    t = trial.t - trial.t[0]
-    step = max(1, int(round(RESIDUAL_PERIOD_S / (t[1] - t[0]))))
-    working = [j - 1 for j in trial.working_joints]
+    every, working = every_period(trial), [j - 1 for j in trial.working_joints]
     sigma = max(replayer(trial).angle_noise_rad(), ANGLE_NOISE_FLOOR_RAD)
-    return ((twin.q[::step, working] - trial.q[::step, working]) / sigma).T.ravel()
+    return ((twin.q[every, working] - trial.q[every, working]) / sigma).T.ravel()
 
 
 def angle_rows(trial) -> int:
     """How many rows angle_residual gives for `trial`."""
-    t = trial.t - trial.t[0]
-    step = max(1, int(round(RESIDUAL_PERIOD_S / (t[1] - t[0]))))
-    return len(t[::step]) * len(trial.working_joints)
+    return len(trial.t[every_period(trial)]) * len(trial.working_joints)
+
+
+def every_period(trial) -> slice:
+    """The trial's samples every RESIDUAL_PERIOD_S (the nearest whole number of sample periods), from the first."""
+    return slice(None, None, max(1, int(round(RESIDUAL_PERIOD_S / (trial.t[1] - trial.t[0])))))
 
 
 def residual_jacobian(trial, run, residual) -> np.ndarray:
