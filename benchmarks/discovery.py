@@ -104,6 +104,7 @@ def one(cell: Cell, seed: int, args) -> dict:
         "gain": best_gain(found.path, found.cost_without),
         "cost_without": found.cost_without,
         "noise": found.noise,
+        "input_noise": found.input_noise,
         "terms": [{"key": t.key, "value": t.value, "se": t.standard_error, "words": t.words} for t in found.terms],
         "fall": found.fall,
         "angle_fall": found.angle_fall,
@@ -115,7 +116,7 @@ def one(cell: Cell, seed: int, args) -> dict:
 def reported(row: dict, min_fall: float, min_gain: float) -> bool:
     """Whether the gate (discover.passes_gate) lets the campaign's best sparse model through and a term of it stays
     off zero when refined (discover drops those at a zero bound; rows made before it kept them)."""
-    gate = passes_gate(row["gain"], row["cost_without"], min_fall, min_gain, noise=row.get("noise", 0.0))
+    gate = passes_gate(row["gain"], row["cost_without"], min_fall, min_gain, noise=row["noise"] + row["input_noise"])
     return gate and any(t["value"] for t in row["terms"])
 
 
@@ -193,6 +194,7 @@ def main():
     args.out.mkdir(parents=True, exist_ok=True)
     path = args.out / "rows.jsonl"
     rows = [json.loads(line) for line in path.read_text().splitlines()] if path.exists() else []
+    rows = [r for r in rows if "input_noise" in r]  # made before the gate's noise floor: run again
     done = {(r["cell"], r["seed"]) for r in rows}
     jobs = [(known[c], s) for s in seed_list for c in labels if (c, s) not in done]
     for n, (cell, seed) in enumerate([] if args.table_only else jobs):

@@ -2,12 +2,13 @@
 campaign without one gets no term."""
 
 import dataclasses
+import math
 
 import numpy as np
 import pytest
 
-from rc1_drake.config import Friction, Stop
-from rc1_drake.diagnose.discover import discover, term_words
+from rc1_drake.config import RESIDUAL_SIGMAS, Friction, Stop
+from rc1_drake.diagnose.discover import Discovery, corrected_residual, discover, term_words
 from rc1_drake.measurements import load_campaign
 from rc1_drake.synthesize import Case, Noise, synthesize_campaign
 
@@ -50,6 +51,35 @@ def test_a_hidden_failed_joint_bias_is_recovered_to_five_percent_named_and_check
     assert term.words.startswith("a constant torque at each failed joint")
     assert found.fall > 0.9
     assert found.effects["discrepancy_failed_joint_bias_Nm"] == term.value
+    assert found.input_noise < 1e-3 * found.heldout_before  # no potentiometer noise: the replays' floor is nil
+
+
+def test_the_fall_is_taken_of_the_error_beyond_the_noise_floor():
+    """Hand-computed: 100 before, 40 after, a floor of 20 (angles) + 20 (the replays' input noise): all of the 60
+    beyond the floor removed."""
+    found = Discovery([], [], 100.0, 100.0, 40.0, {}, 0, noise=20.0, input_noise=20.0)
+    assert found.floor == 40.0 and found.fall == pytest.approx(1.0)
+    assert found.angle_fall == 0.0  # no angle rows counted: angles_before 0 is not beyond their noise
+
+
+def test_the_input_noise_floor_is_at_most_what_a_null_campaign_costs_beyond_its_sensors(tmp_path):
+    """The gate's floor (each trial's replays with their angle noise resampled: the trace of their covariance) is
+    what the input noise costs a campaign without an effect at the truth: no more than its corrected residuals cost
+    beyond the camera's and the hand's noise (else the gate would open on noise), and most of it (measured over seeds
+    1-6 of this design: 46-81%)."""
+    from rc1_drake.sysid.input_noise import INPUT_NOISE_SAMPLES, input_noise_covariance
+
+    synthesize_campaign(tmp_path, design=[Case([], 2), Case([7], 2)], seed=1,
+                        stop=Stop(line_x_m=None, revolutions=None, time_limit_s=2.0))  # fmt: skip
+    noise, cost, floor, sensors = Noise(), 0.0, 0.0, 0.0
+    camera, hand = (noise.camera_m / RESIDUAL_SIGMAS["camera_m"]) ** 2, (noise.hand_m / RESIDUAL_SIGMAS["final_m"]) ** 2
+    for k, trial in enumerate(load_campaign(tmp_path).trials):
+        r = corrected_residual(trial, Friction(), {})
+        cost += r @ r
+        floor += np.trace(input_noise_covariance(trial, Friction(), {}, INPUT_NOISE_SAMPLES, k))
+        sensors += (len(r) - 2) * camera + 2 * hand
+    spread = math.sqrt(2 * sensors * camera)  # the sensors' chi-square scatter, each row's variance `camera`
+    assert 0.25 * (cost - sensors) < floor < cost - sensors + 2 * spread
 
 
 @pytest.mark.slow

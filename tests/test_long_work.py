@@ -47,10 +47,11 @@ def test_the_far_campaigns_crossings_move_with_the_friction(far_campaign):
 
 
 @pytest.mark.parametrize("method", ["avs", "program", "equation-error"])
-def test_identify_ends_with_its_report_far_from_the_data(far_campaign, tmp_path, capsys, method):
+def test_identify_ends_with_its_report_far_from_the_data(far_campaign, tmp_path, capsys, monkeypatch, method):
     out, report = tmp_path / "model.yaml", tmp_path / "report.json"
+    monkeypatch.chdir(tmp_path)  # its checkpoint at the default, out/checkpoints/...
     argv = ["identify", str(far_campaign), "--method", method, "--iterations", "2", *QUICK]
-    argv += ["--checkpoint", str(tmp_path / "ck"), "--out", str(out), "--json", str(report)]
+    argv += ["--out", str(out), "--json", str(report)]
     assert main(argv) == 0
     printed = capsys.readouterr().out
     assert "held-out" in printed.lower()
@@ -58,7 +59,7 @@ def test_identify_ends_with_its_report_far_from_the_data(far_campaign, tmp_path,
     if method != "equation-error":
         assert "Uncertainty at the result" in printed and record["uncertainty"]["standard_errors"]
     assert yaml.safe_load(out.read_text())["friction"]
-    assert not (tmp_path / "ck").exists()  # done: its checkpoint, and the fit kept for a failure, are gone
+    assert not (tmp_path / "out" / "checkpoints").exists()  # done: its checkpoint (and the fit kept for a failure)
 
 
 def test_diagnose_ends_with_its_report_far_from_the_data_and_its_page_shows_it(far_campaign, tmp_path, capsys):

@@ -8,7 +8,9 @@ coordinate at once). The sparse fit is orthogonal matching pursuit (scikit-learn
 dozens of correlated columns, PySINDy's thresholded least squares (STLSQ) kept large cancelling coefficients and
 lost the true term (docs/findings.md). How many terms is chosen by leaving one trial out: the fewest whose
 held-out cost is within one standard error of the best, and none
-at all unless it removes MIN_FALL and MIN_GAIN of the held-out cost without terms.
+at all unless it removes MIN_GAIN and MIN_FALL of the held-out cost without terms beyond the noise floor: what the
+rows cost at the truth from the noise discovery measures (the replays' input noise, resampled; the angles' count). The
+camera's noise is not in it (its stated sigma is a scale, not a measurement): the gate errs toward no term.
 
 With `angles`, each trial also contributes its working joints' measured angles against the model's servos driven
 by the trial's command (sysid.residual.angle_residual: a servo's tracking error is its load, which the kinematic
@@ -88,12 +90,18 @@ class Discovery:
     noise: float = 0.0  # what the angle rows cost at the truth (their count: each standardized by its noise)
     angles_before: float = 0.0  # the angle rows' share of heldout_before and heldout_after
     angles_after: float = 0.0
+    input_noise: float = 0.0  # the path rows' cost at the truth from the replays' input noise (covariances' traces)
+
+    @property
+    def floor(self) -> float:
+        """What the rows cost at the truth from the noise discovery measures: the angles' and the replays' input."""
+        return self.noise + self.input_noise
 
     @property
     def fall(self) -> float:
-        """The fraction of the held-out error beyond the angle rows' noise that the terms remove (by replay)."""
-        excess = self.heldout_before - self.noise
-        return 1.0 - (self.heldout_after - self.noise) / excess if excess > 0 else 0.0
+        """The fraction of the held-out error beyond the noise floor that the terms remove (by replay)."""
+        excess = self.heldout_before - self.floor
+        return 1.0 - (self.heldout_after - self.floor) / excess if excess > 0 else 0.0
 
     @property
     def angle_fall(self) -> float:
@@ -112,8 +120,8 @@ class Discovery:
         if not self.terms:
             lines.append(
                 f"  no term earns its place: the best sparse model removes less than {100 * MIN_FALL:.0f}% or "
-                f"{MIN_GAIN:g} of the held-out cost without terms ({self.cost_without:.4g}"
-                + (f", of which {self.noise:.4g} the angles' noise)" if self.noise else ")")
+                f"{MIN_GAIN:g} of the held-out cost without terms beyond its noise floor ({self.cost_without:.4g}"
+                f" - {self.floor:.4g}: {_floor_words(self)})"
             )
             return "\n".join(lines)
         for t in self.terms:
@@ -121,10 +129,10 @@ class Discovery:
             lines.append(f"  {t.key} = {t.value:.3g} (95%: {low:.3g} .. {high:.3g}): {t.words}")
             for m in t.matches:
                 lines.append(f"      its shape matches {m['name']} (cos {m['cosine']:.2f}) at {m['value']:.3g}")
-        beyond = f" of what the angles' noise ({self.noise:.4g}) leaves" if self.noise else ""
         lines.append(
             f"  held-out error (each trial replayed with terms fitted without it): {self.heldout_before:.4g} -> "
-            f"{self.heldout_after:.4g} ({100 * self.fall:.0f}% removed{beyond})"
+            f"{self.heldout_after:.4g} ({100 * self.fall:.0f}% of what its noise floor, {self.floor:.4g}, leaves: "
+            f"{_floor_words(self)})"
         )
         if self.noise:
             lines.append(
@@ -133,6 +141,11 @@ class Discovery:
                 f"{self.heldout_before - self.angles_before:.4g} -> {self.heldout_after - self.angles_after:.4g}"
             )
         return "\n".join(lines)
+
+
+def _floor_words(found: Discovery) -> str:
+    words = [f"the replays' input noise {found.input_noise:.4g}"]
+    return ", ".join(words + ([f"the angles' {found.noise:.4g}"] if found.noise else []))
 
 
 def term_words(name: str, value: float) -> str:
@@ -194,20 +207,26 @@ def discover(
     r, columns = _without_nuisance(r, columns, [p[1][:, len(keys) + len(library) :] for p in parts])
     path, cost_without = _sparsity_path(r, columns, sizes)
     counts = [angle_rows(t) if angles else 0 for t in trials]  # each trial's angle rows, last in its residual
-    noise = float(sum(counts))
-    chosen = _choose(path, cost_without, noise)
+    blocks = evaluator.map(
+        input_noise_covariance,
+        [(t, friction, effects, INPUT_NOISE_SAMPLES, k) for k, t in enumerate(trials)],
+        "the replays' input noise",
+    )
+    noise, input_noise = float(sum(counts)), float(sum(np.trace(b) for b in blocks))
+    chosen = _choose(path, cost_without, noise + input_noise)
+    floors = {"noise": noise, "input_noise": input_noise}
     if chosen is None:
         spent = evaluator.simulations - start
-        return Discovery([], path, float(cost_without.sum()), 0.0, 0.0, dict(effects), spent, noise=noise)
+        return Discovery([], path, float(cost_without.sum()), 0.0, 0.0, dict(effects), spent, **floors)
     support = [keys[j] for j in chosen["support"]]
     values = dict(zip(support, chosen["values"], strict=True))
     values, fitted, view = _refined(trials, friction, effects, values, evaluator, view)
     values, fitted = _without_zeros(values, fitted, len(view.gains))
     if not values:  # every term refined to a zero bound: the model without them
         spent = evaluator.simulations - start
-        return Discovery([], path, float(cost_without.sum()), 0.0, 0.0, dict(effects), spent, noise=noise)
+        return Discovery([], path, float(cost_without.sum()), 0.0, 0.0, dict(effects), spent, **floors)
     model = {**effects, **values}
-    errors = _standard_errors(trials, friction, model, fitted, evaluator)
+    errors = _standard_errors(fitted, blocks)
     before = sum(float(x @ x) for x in r)
     held = _held_out_by_replay(trials, friction, model, values, fitted, evaluator, view)
     after = sum(float(x @ x) for x in held)
@@ -222,8 +241,9 @@ def discover(
     spent = evaluator.simulations - start
     servo = view.servo if angles else None
     return Discovery(
-        terms, path, float(cost_without.sum()), before, after, model, spent, servo, noise, angles_before, angles_after
-    )
+        terms, path, float(cost_without.sum()), before, after, model, spent, servo, angles_before=angles_before,
+        angles_after=angles_after, **floors,
+    )  # fmt: skip
 
 
 def discover_campaign(
@@ -352,8 +372,8 @@ def best_gain(path, cost_without) -> float:
 
 def passes_gate(gain: float, cost_without, min_fall=MIN_FALL, min_gain=MIN_GAIN, noise: float = 0.0) -> bool:
     """Whether a sparse model that removes `gain` of the held-out cost without terms (`cost_without`, per trial or
-    summed) may be reported: at least `min_fall` of that cost beyond `noise` (what rows standardized by their own
-    noise cost at the truth: the angle rows' count) and at least `min_gain`."""
+    summed) may be reported: at least `min_fall` of that cost beyond `noise` (what the rows cost at the truth:
+    Discovery.floor) and at least `min_gain`."""
     return gain >= min_gain and gain >= min_fall * max(float(np.sum(cost_without)) - noise, 0.0)
 
 
@@ -421,17 +441,12 @@ def _without_zeros(values: dict, fitted: tuple, gains: int) -> tuple:
     return {keys[j]: values[keys[j]] for j in keep}, (jacobian[:, columns], residual, rows)
 
 
-def _standard_errors(trials, friction, model, fitted, evaluator) -> np.ndarray:
+def _standard_errors(fitted, blocks) -> np.ndarray:
     """The terms' standard errors by the sandwich (sysid.stats.sandwich; inf where the data do not constrain a
     term), S each channel's variance (sysid.stats.channel_variances) plus the covariance the angle noise in the
-    replays' input causes (INPUT_NOISE_SAMPLES resampled replays per trial): as white residuals, the interval of a
-    failed joint's bias on a noisy campaign missed the truth (docs/findings.md)."""
+    replays' input causes (`blocks`: each trial's, at the model without the terms, which move it little): as white
+    residuals, the interval of a failed joint's bias on a noisy campaign missed the truth (docs/findings.md)."""
     jac, residual, sizes = fitted
-    blocks = evaluator.map(
-        input_noise_covariance,
-        [(t, friction, model, INPUT_NOISE_SAMPLES, k) for k, t in enumerate(trials)],
-        "the input noise at the discovered terms",
-    )
     # The angle rows (after a trial's path rows) follow no replay: their noise is the potentiometers', white.
     blocks = [np.pad(b, (0, n - len(b))) for b, n in zip(blocks, sizes, strict=True)]
     channels = np.concatenate([residual_channels(np.zeros(n), n - len(b)) for b, n in zip(blocks, sizes, strict=True)])

@@ -83,12 +83,14 @@ class Checkpoint:
     @staticmethod
     def discard(folder) -> None:
         """Delete this code's checkpoint in `folder` (the job finished: its results are in its output), and the folder
-        if nothing else is in it."""
-        (Path(folder) / f"results-{code_version()}.pkl").unlink(missing_ok=True)
-        try:
-            Path(folder).rmdir()
-        except OSError:
-            pass  # other files are there (another code version's checkpoint, the user's): left alone
+        if nothing else is in it, and then its parent if that is an empty `checkpoints` (the commands' default)."""
+        folder = Path(folder)
+        (folder / f"results-{code_version()}.pkl").unlink(missing_ok=True)
+        for empty in (folder, folder.parent) if folder.parent.name == "checkpoints" else (folder,):
+            try:
+                empty.rmdir()
+            except OSError:
+                return  # other files are there (another code version's checkpoint, the user's): left alone
 
 
 class Evaluator:
