@@ -62,6 +62,20 @@ def test_the_fall_is_taken_of_the_error_beyond_the_noise_floor():
     assert found.angle_fall == 0.0  # no angle rows counted: angles_before 0 is not beyond their noise
 
 
+def test_a_trials_path_rows_weigh_as_in_the_diagnosis_and_its_angle_rows_as_their_noise():
+    """Hand-computed: path rows weigh 1 / sqrt(1 + v), v the case's mean input-noise variance per row (two trials of
+    one case pooled: (3 + 1) / 2 = 2); the angle rows after them weigh 1."""
+    from types import SimpleNamespace
+
+    from rc1_drake.diagnose.discover import _row_weights
+
+    trials = [SimpleNamespace(case="joint 2"), SimpleNamespace(case="joint 2"), SimpleNamespace(case="none")]
+    blocks = [3.0 * np.eye(4), np.eye(4), np.zeros((3, 3))]
+    weights = _row_weights(trials, blocks, [2, 2, 0])
+    assert np.allclose(weights[0], [3**-0.5] * 4 + [1, 1]) and np.allclose(weights[1], weights[0])
+    assert np.allclose(weights[2], np.ones(3))
+
+
 def test_the_input_noise_floor_is_at_most_what_a_null_campaign_costs_beyond_its_sensors(tmp_path):
     """The gate's floor (each trial's replays with their angle noise resampled: the trace of their covariance) is
     what the input noise costs a campaign without an effect at the truth: no more than its corrected residuals cost

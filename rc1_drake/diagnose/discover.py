@@ -10,7 +10,8 @@ lost the true term (docs/findings.md). How many terms is chosen by leaving one t
 held-out cost is within one standard error of the best, and none
 at all unless it removes MIN_GAIN and MIN_FALL of the held-out cost without terms beyond the noise floor: what the
 rows cost at the truth from the noise discovery measures (the replays' input noise, resampled; the angles' count). The
-camera's noise is not in it (its stated sigma is a scale, not a measurement): the gate errs toward no term.
+camera's noise is not in it (its stated sigma is a scale, not a measurement): the gate errs toward no term. A trial's
+path rows weigh as in the diagnosis's fits (linearize.trial_weights): a chaotic replay's misfit counts as its noise.
 
 With `angles`, each trial also contributes its working joints' measured angles against the model's servos driven
 by the trial's command (sysid.residual.angle_residual: a servo's tracking error is its load, which the kinematic
@@ -39,6 +40,7 @@ from ..sysid.residual import (
     trial_residual,
 )
 from ..sysid.stats import Z95, channel_variances, sandwich
+from .linearize import trial_weights
 
 SIZES = (1, 2, 3, 4)  # how many terms a sparse model may have: a missing effect is one or two mechanisms
 # What a sparse model must remove of the held-out cost to say anything: a share of it, and the chi-square(1) 95%
@@ -90,7 +92,7 @@ class Discovery:
     noise: float = 0.0  # what the angle rows cost at the truth (their count: each standardized by its noise)
     angles_before: float = 0.0  # the angle rows' share of heldout_before and heldout_after
     angles_after: float = 0.0
-    input_noise: float = 0.0  # the path rows' cost at the truth from the replays' input noise (covariances' traces)
+    input_noise: float = 0.0  # the path rows' cost at the truth from the replays' input noise (weighted traces)
 
     @property
     def floor(self) -> float:
@@ -196,23 +198,26 @@ def discover(
     start = evaluator.simulations
     keys, library = discrepancy_keys(trials), library_coordinates()
     view = _View(Servo(), angles)
-    parts = evaluator.map(
-        corrected_and_jacobian,
-        [(t, friction, effects, tuple(keys + library), view) for t in trials],
-        "the discrepancy's columns (replays and twins)",
-    )
-    r = [p[0] for p in parts]
-    columns = [p[1][:, : len(keys)] for p in parts]
-    library_columns = np.vstack([p[1][:, len(keys) : len(keys) + len(library)] for p in parts])
-    r, columns = _without_nuisance(r, columns, [p[1][:, len(keys) + len(library) :] for p in parts])
-    path, cost_without = _sparsity_path(r, columns, sizes)
     counts = [angle_rows(t) if angles else 0 for t in trials]  # each trial's angle rows, last in its residual
     blocks = evaluator.map(
         input_noise_covariance,
         [(t, friction, effects, INPUT_NOISE_SAMPLES, k) for k, t in enumerate(trials)],
         "the replays' input noise",
     )
-    noise, input_noise = float(sum(counts)), float(sum(np.trace(b) for b in blocks))
+    weights = _row_weights(trials, blocks, counts)
+    parts = evaluator.map(
+        corrected_and_jacobian,
+        [(t, friction, effects, tuple(keys + library), view) for t in trials],
+        "the discrepancy's columns (replays and twins)",
+    )
+    parts = [(r * w, jac * w[:, None]) for (r, jac), w in zip(parts, weights, strict=True)]
+    r = [p[0] for p in parts]
+    columns = [p[1][:, : len(keys)] for p in parts]
+    library_columns = np.vstack([p[1][:, len(keys) : len(keys) + len(library)] for p in parts])
+    r, columns = _without_nuisance(r, columns, [p[1][:, len(keys) + len(library) :] for p in parts])
+    path, cost_without = _sparsity_path(r, columns, sizes)
+    noise = float(sum(counts))
+    input_noise = float(sum(w[0] ** 2 * np.trace(b) for w, b in zip(weights, blocks, strict=True) if len(b)))
     chosen = _choose(path, cost_without, noise + input_noise)
     floors = {"noise": noise, "input_noise": input_noise}
     if chosen is None:
@@ -220,15 +225,16 @@ def discover(
         return Discovery([], path, float(cost_without.sum()), 0.0, 0.0, dict(effects), spent, **floors)
     support = [keys[j] for j in chosen["support"]]
     values = dict(zip(support, chosen["values"], strict=True))
-    values, fitted, view = _refined(trials, friction, effects, values, evaluator, view)
+    values, fitted, view = _refined(trials, friction, effects, values, evaluator, view, weights)
     values, fitted = _without_zeros(values, fitted, len(view.gains))
     if not values:  # every term refined to a zero bound: the model without them
         spent = evaluator.simulations - start
         return Discovery([], path, float(cost_without.sum()), 0.0, 0.0, dict(effects), spent, **floors)
     model = {**effects, **values}
-    errors = _standard_errors(fitted, blocks)
+    errors = _standard_errors(fitted, [w[0] ** 2 * b for w, b in zip(weights, blocks, strict=True)])
     before = sum(float(x @ x) for x in r)
     held = _held_out_by_replay(trials, friction, model, values, fitted, evaluator, view)
+    held = [x * w for x, w in zip(held, weights, strict=True)]
     after = sum(float(x @ x) for x in held)
     angles_before, angles_after = (
         sum(float(x[len(x) - n :] @ x[len(x) - n :]) for x, n in zip(rs, counts, strict=True)) for rs in (r, held)
@@ -389,10 +395,10 @@ def _choose(path, cost_without, noise: float = 0.0):
     return min((p for p in with_terms if p["held"].sum() <= limit), key=lambda p: p["size"])
 
 
-def _refined(trials, friction, effects, values, evaluator, view: _View) -> tuple:
+def _refined(trials, friction, effects, values, evaluator, view: _View, weights) -> tuple:
     """Gauss-Newton steps on the surviving terms (their bounds kept) and the servos' gains (with the angles), each
     halved while a replay fails or the cost rises: (values, (their Jacobian, the residual, each trial's row count)
-    there, the view with the servos there)."""
+    there, the view with the servos there); each trial's rows weighed by `weights` (_row_weights)."""
     keys = list(values)
 
     def at(v, vw):
@@ -404,6 +410,7 @@ def _refined(trials, friction, effects, values, evaluator, view: _View) -> tuple
             )
         except Rc1Error:  # a run blew up at these values
             return None
+        parts = [(r * w, jac * w[:, None]) for (r, jac), w in zip(parts, weights, strict=True)]
         return np.concatenate([p[0] for p in parts]), np.vstack([p[1] for p in parts]), [len(p[0]) for p in parts]
 
     values = _clipped(values)
@@ -439,6 +446,14 @@ def _without_zeros(values: dict, fitted: tuple, gains: int) -> tuple:
     jacobian, residual, rows = fitted
     columns = keep + list(range(len(keys), len(keys) + gains))
     return {keys[j]: values[keys[j]] for j in keep}, (jacobian[:, columns], residual, rows)
+
+
+def _row_weights(trials, blocks, counts) -> list:
+    """Each trial's rows' weights: its path rows' the diagnosis's (linearize.trial_weights, a scalar feasible
+    generalized least squares by its case's input-noise variance: a joint-2 failure's chaotic replay weighs less), its
+    `counts` angle rows' 1 (their noise is the potentiometers', white, and each is standardized by it)."""
+    path = trial_weights(trials, blocks)
+    return [np.r_[np.full(len(b), w), np.ones(n)] for w, b, n in zip(path, blocks, counts, strict=True)]
 
 
 def _standard_errors(fitted, blocks) -> np.ndarray:
