@@ -2,15 +2,15 @@
 that the model discovery starts from lacks.
 
     python benchmarks/discovery.py [--seeds 0-5] [--calibrate 0-2] [--cells CELL,...] [--workers 2] [--angles]
-                                   [--out benchmarks/out/discovery] [--markdown] [--table-only]
+                                   [--design short|paper] [--out DIR] [--markdown] [--table-only]
 
-Every campaign: two no-failure and two joint-7 trials of 2 s, with the synthesizer's sensor noise and start spread,
-made by this model or by reference.py (another model: kinematic joints, its own limits, the forces written anew:
-reference.HiddenForces). Hidden, by both: nothing; a constant torque in the failed joint; a sideways force at the
-head proportional to its rolling speed; the rear wheels (modules 11-14) with half the lateral viscous friction; a
-tether dragging the tail (a Coulomb force at its end: the `study` effect, a shape the term library has); a wheel toe
-(a library effect the model lacks: its force pattern must come back). reference.py also hides a floor seam, a
-torque twisting the head as it crosses a fixed x: a shape no term has, so any term reported for it is wrong.
+Every campaign (--design short): two no-failure and two joint-7 trials of 2 s, with the synthesizer's sensor noise
+and start spread, made by this model or by reference.py (another model: kinematic joints, its own limits, the forces
+written anew: reference.HiddenForces). Hidden, by both: nothing; a constant torque in the failed joint; a sideways
+force at the head proportional to its rolling speed; the rear wheels (modules 11-14) with half the lateral viscous
+friction; a tether dragging the tail (a Coulomb force at its end: the `study` effect, a shape the term library has);
+a wheel toe (a library effect the model lacks: its force pattern must come back). reference.py also hides a floor
+seam, a torque twisting the head as it crosses a fixed x: a shape no term has, so any term reported for it is wrong.
 
 Discovery (diagnose/discover.py) runs from the paper's model with the truth's friction and its shipped gate: every
 campaign's best sparse model is recorded with its held-out gain, and where it passes the gate, its terms refined and
@@ -21,7 +21,9 @@ shipped gate. Scored per campaign: whether a term is reported, and whether one i
 variable, right sign: RIGHT), and how much of the held-out error the terms remove (by replay). Rows stream to
 OUT/rows.jsonl (a rerun resumes); --markdown writes the table into docs/diagnosis.md. --angles: discovery with the
 working joints' angles against the model's servos (`rc1 diagnose --discover --angles`), its rows in OUT-angles and
-its table in a block of its own.
+its table in a block of its own. --design paper: the paper's 21 trials of 10 s (the shipped campaign's design: no
+failure, joints 7, 13, 7 with a bias, 2), by default the nulls and the tether only (PAPER_CELLS: about half an hour a
+campaign on 2 cores with the angles); its rows and table its own too.
 """
 
 import argparse
@@ -37,17 +39,17 @@ from doc_blocks import REPO_ROOT, check_block, write_block
 from rc1_drake.config import Friction, Stop
 from rc1_drake.diagnose.discover import MIN_FALL, MIN_GAIN, best_gain, discover_campaign, passes_gate
 from rc1_drake.measurements import load_campaign
-from rc1_drake.synthesize import Case, synthesize_campaign
+from rc1_drake.synthesize import PAPER_DESIGN, Case, synthesize_campaign
 
 PAGE = REPO_ROOT / "docs" / "diagnosis.md"
-BLOCKS = {  # --angles -> (the table's block in PAGE, its writer)
-    False: ("discovery-rates-table", "benchmarks/discovery.py --markdown"),
-    True: ("discovery-angles-rates-table", "benchmarks/discovery.py --angles --markdown"),
-}
 # A tether's force, averaged over the gait: a constant pull backward along the tail (right with a negative sign).
 TETHER_MEAN = ("discrepancy_tail_push_long_N", -1)
-DESIGN = [Case([], 2), Case([7], 2)]
-SECONDS = 2.0
+# --design -> (the trials, their stop): short campaigns, or the paper's (the shipped campaign's 21 trials of 10 s)
+DESIGNS = {
+    "short": ([Case([], 2), Case([7], 2)], Stop(line_x_m=None, revolutions=None, time_limit_s=2.0)),
+    "paper": (PAPER_DESIGN, None),
+}
+PAPER_CELLS = ("nothing", "tail tether 1 N", "nothing (reference.py)", "tail tether 1 N (reference.py)")
 C_LAT = Friction().c_lat
 
 
@@ -94,8 +96,9 @@ CELLS = [
 def one(cell: Cell, seed: int, args) -> dict:
     folder = args.out / "campaigns" / f"{cell.label.replace(' ', '_').replace('/', '_')}-{seed}"
     if not folder.is_dir():
-        synthesize_campaign(folder, design=DESIGN, effects=cell.hidden, seed=seed, truth_model=cell.truth_model,
-                            stop=Stop(line_x_m=None, revolutions=None, time_limit_s=SECONDS))  # fmt: skip
+        design, stop = DESIGNS[args.design]
+        synthesize_campaign(folder, design=design, effects=cell.hidden, seed=seed, truth_model=cell.truth_model,
+                            stop=stop)  # fmt: skip
     started = time.perf_counter()
     found = discover_campaign(load_campaign(folder).trials, Friction(), {}, workers=args.workers, angles=args.angles)
     return {
@@ -175,22 +178,25 @@ def main():
     parser.add_argument("--cells", help="comma-separated cell labels (default: all)")
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--angles", action="store_true", help="discovery with the angles (module docstring)")
-    parser.add_argument("--out", type=Path, help="rows and campaigns (default benchmarks/out/discovery[-angles])")
+    parser.add_argument("--design", choices=DESIGNS, default="short", help="the campaigns' trials (DESIGNS)")
+    parser.add_argument("--out", type=Path, help="rows and campaigns (default benchmarks/out/<the table's block>)")
     parser.add_argument("--markdown", action="store_true", help="write the table into docs/diagnosis.md")
     parser.add_argument("--table-only", action="store_true", help="print (and write) the table of the rows so far")
     args = parser.parse_args()
     known = {c.label: c for c in CELLS}
-    labels = args.cells.split(",") if args.cells else list(known)
+    labels = args.cells.split(",") if args.cells else list(PAPER_CELLS if args.design == "paper" else known)
     if unknown := [c for c in labels if c not in known]:
         raise SystemExit(f"--cells: unknown cell {unknown[0]!r} (known: {', '.join(known)})")
     try:
         seed_list, calibration = parse_seeds(args.seeds), set(parse_seeds(args.calibrate))
     except ValueError:
         raise SystemExit(f"--seeds/--calibrate: cannot read {args.seeds!r} / {args.calibrate!r} (e.g. 0-5)") from None
-    block, writer = BLOCKS[args.angles]
+    name = "discovery" + ("-angles" if args.angles else "") + ("-paper" if args.design == "paper" else "")
+    flags = ("--angles " if args.angles else "") + ("--design paper " if args.design == "paper" else "")
+    block, writer = f"{name}-rates-table", f"benchmarks/discovery.py {flags}--markdown"
     if args.markdown:
         check_block(PAGE, block, writer)
-    args.out = args.out or REPO_ROOT / "benchmarks" / "out" / ("discovery-angles" if args.angles else "discovery")
+    args.out = args.out or REPO_ROOT / "benchmarks" / "out" / name
     args.out.mkdir(parents=True, exist_ok=True)
     path = args.out / "rows.jsonl"
     rows = [json.loads(line) for line in path.read_text().splitlines()] if path.exists() else []
@@ -208,6 +214,8 @@ def main():
               f"{100 * row['fall']:.0f}% ({cost})", flush=True)  # fmt: skip
     body, head = table(rows, calibration, [known[c] for c in labels], writer)
     print(head, body, sep="\n")
+    if args.markdown and not any(r["seed"] not in calibration for r in rows):
+        raise SystemExit(f"{path}: no rows on the reported seeds: the table in {PAGE} is left as it is")
     if args.markdown:
         write_block(PAGE, block, writer, head + "\n\n" + body)
 
