@@ -205,19 +205,20 @@ def discover(
         "the replays' input noise",
     )
     weights = _row_weights(trials, blocks, counts)
+    blocks = [w[0] ** 2 * b for w, b in zip(weights, blocks, strict=True)]  # the path rows' covariances, weighed
     parts = evaluator.map(
         corrected_and_jacobian,
         [(t, friction, effects, tuple(keys + library), view) for t in trials],
         "the discrepancy's columns (replays and twins)",
     )
-    parts = [(r * w, jac * w[:, None]) for (r, jac), w in zip(parts, weights, strict=True)]
+    parts = _weighed(parts, weights)
     r = [p[0] for p in parts]
     columns = [p[1][:, : len(keys)] for p in parts]
     library_columns = np.vstack([p[1][:, len(keys) : len(keys) + len(library)] for p in parts])
     r, columns = _without_nuisance(r, columns, [p[1][:, len(keys) + len(library) :] for p in parts])
     path, cost_without = _sparsity_path(r, columns, sizes)
     noise = float(sum(counts))
-    input_noise = float(sum(w[0] ** 2 * np.trace(b) for w, b in zip(weights, blocks, strict=True) if len(b)))
+    input_noise = float(sum(np.trace(b) for b in blocks))
     chosen = _choose(path, cost_without, noise + input_noise)
     floors = {"noise": noise, "input_noise": input_noise}
     if chosen is None:
@@ -231,7 +232,7 @@ def discover(
         spent = evaluator.simulations - start
         return Discovery([], path, float(cost_without.sum()), 0.0, 0.0, dict(effects), spent, **floors)
     model = {**effects, **values}
-    errors = _standard_errors(fitted, [w[0] ** 2 * b for w, b in zip(weights, blocks, strict=True)])
+    errors = _standard_errors(fitted, blocks)
     before = sum(float(x @ x) for x in r)
     held = _held_out_by_replay(trials, friction, model, values, fitted, evaluator, view)
     held = [x * w for x, w in zip(held, weights, strict=True)]
@@ -410,7 +411,7 @@ def _refined(trials, friction, effects, values, evaluator, view: _View, weights)
             )
         except Rc1Error:  # a run blew up at these values
             return None
-        parts = [(r * w, jac * w[:, None]) for (r, jac), w in zip(parts, weights, strict=True)]
+        parts = _weighed(parts, weights)
         return np.concatenate([p[0] for p in parts]), np.vstack([p[1] for p in parts]), [len(p[0]) for p in parts]
 
     values = _clipped(values)
@@ -456,11 +457,17 @@ def _row_weights(trials, blocks, counts) -> list:
     return [np.r_[np.full(len(b), w), np.ones(n)] for w, b, n in zip(path, blocks, counts, strict=True)]
 
 
+def _weighed(parts, weights) -> list:
+    """Each trial's (residual, Jacobian) with its rows multiplied by their weights (_row_weights)."""
+    return [(r * w, jac * w[:, None]) for (r, jac), w in zip(parts, weights, strict=True)]
+
+
 def _standard_errors(fitted, blocks) -> np.ndarray:
     """The terms' standard errors by the sandwich (sysid.stats.sandwich; inf where the data do not constrain a
     term), S each channel's variance (sysid.stats.channel_variances) plus the covariance the angle noise in the
-    replays' input causes (`blocks`: each trial's, at the model without the terms, which move it little): as white
-    residuals, the interval of a failed joint's bias on a noisy campaign missed the truth (docs/findings.md)."""
+    replays' input causes (`blocks`: each trial's path rows', weighed, at the model without the terms, which move it
+    little): as white residuals, the interval of a failed joint's bias on a noisy campaign missed the truth
+    (docs/findings.md)."""
     jac, residual, sizes = fitted
     # The angle rows (after a trial's path rows) follow no replay: their noise is the potentiometers', white.
     blocks = [np.pad(b, (0, n - len(b))) for b, n in zip(blocks, sizes, strict=True)]
