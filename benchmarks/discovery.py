@@ -15,26 +15,25 @@ seam, a torque twisting the head as it crosses a fixed x: a shape no term has, s
 Discovery (diagnose/discover.py) runs from the paper's model with the truth's friction and its shipped gate: every
 campaign's best sparse model is recorded with its held-out gain, and where it passes the gate, its terms refined and
 checked by replaying each trial with terms fitted without it. The gate is chosen on the --calibrate seeds (MIN_FALL
-kept; MIN_GAIN the smallest at or above the shipped one that gives no calibration null a term: only ever higher, so
-the rows hold what any chosen gate reports) and the rates are reported on the other seeds, at the chosen and at the
-shipped gate. Scored per campaign: whether a term is reported, and whether one is the right one (right place, right
-variable, right sign: RIGHT), and how much of the held-out error the terms remove (by replay). Rows stream to
-OUT/rows.jsonl (a rerun resumes); --markdown writes the table into docs/diagnosis.md. --angles: discovery with the
-working joints' angles against the model's servos (`rc1 diagnose --discover --angles`), its rows in OUT-angles and
-its table in a block of its own. --design paper: the paper's 21 trials of 10 s (the shipped campaign's design: no
-failure, joints 7, 13, 7 with a bias, 2), by default the nulls and the tether only (PAPER_CELLS: about half an hour a
-campaign on 2 cores with the angles); its rows and table its own too.
-"""
+kept; MIN_GAIN the smallest at or above the shipped one that gives no calibration null a term: only ever higher, so the
+rows hold what any chosen gate reports) and the rates are reported on the other seeds, at the chosen and at the shipped
+gate. Scored per campaign: whether a term is reported, and whether one is the right one (right place, right variable,
+right sign: RIGHT), and how much of the held-out error the terms remove (by replay). Rows stream to
+benchmarks/rows/NAME.jsonl (kept in the repository: a rerun resumes, from a fresh clone too); --markdown writes the
+table into docs/diagnosis.md. --angles: discovery with the working joints' angles against the model's servos (`rc1
+diagnose --discover --angles`), its rows (discovery-angles) and table in a block of their own. --design paper: the
+paper's 21 trials of 10 s (the shipped campaign's design: no failure, joints 7, 13, 7 with a bias, 2), by default the
+nulls and the tether only (PAPER_CELLS: about half an hour a campaign on 2 cores with the angles); its rows and table
+its own too."""
 
 import argparse
 import dataclasses
-import json
 import time
 from pathlib import Path
 
 import numpy as np
 from calibrate import seeds as parse_seeds  # benchmarks/ is on the path when this script runs
-from doc_blocks import REPO_ROOT, check_block, write_block
+from doc_blocks import REPO_ROOT, append_row, check_block, load_rows, write_block
 
 from rc1_drake.config import Friction, Stop
 from rc1_drake.diagnose.discover import MIN_FALL, MIN_GAIN, best_gain, discover_campaign, passes_gate
@@ -198,16 +197,13 @@ def main():
         check_block(PAGE, block, writer)
     args.out = args.out or REPO_ROOT / "benchmarks" / "out" / name
     args.out.mkdir(parents=True, exist_ok=True)
-    path = args.out / "rows.jsonl"
-    rows = [json.loads(line) for line in path.read_text().splitlines()] if path.exists() else []
-    rows = [r for r in rows if "input_noise" in r]  # made before the gate's noise floor: run again
+    rows = [r for r in load_rows(name) if "input_noise" in r]  # made before the gate's noise floor: run again
     done = {(r["cell"], r["seed"]) for r in rows}
     jobs = [(known[c], s) for s in seed_list for c in labels if (c, s) not in done]
     for n, (cell, seed) in enumerate([] if args.table_only else jobs):
         row = one(cell, seed, args)
         rows.append(row)
-        with path.open("a") as f:
-            f.write(json.dumps(row) + "\n")
+        append_row(name, row)
         terms = ", ".join(f"{t['key']}={t['value']:.3g}" for t in row["terms"]) or "none"
         cost = f"{row['wall_s'] / 60:.1f} min, {row['simulations']} jobs of ~100 runs"
         print(f"[{n + 1}/{len(jobs)}] {cell.label} seed {seed}: gain {row['gain']:.3g}, terms {terms}, fall "
@@ -215,7 +211,9 @@ def main():
     body, head = table(rows, calibration, [known[c] for c in labels], writer)
     print(head, body, sep="\n")
     if args.markdown and not any(r["seed"] not in calibration for r in rows):
-        raise SystemExit(f"{path}: no rows on the reported seeds: the table in {PAGE} is left as it is")
+        raise SystemExit(
+            f"benchmarks/rows/{name}.jsonl: no rows on the reported seeds: the table in {PAGE} is left as it is"
+        )
     if args.markdown:
         write_block(PAGE, block, writer, head + "\n\n" + body)
 

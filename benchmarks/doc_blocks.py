@@ -1,6 +1,7 @@
 """Benchmark tables in the docs are written by the benchmarks, never copied by hand: each lives between two
 markers that name the benchmark writing it, and a benchmark checks its markers before its long work starts."""
 
+import json
 import re
 from pathlib import Path
 
@@ -32,3 +33,21 @@ def write_block(path: Path, name: str, writer: str, body: str) -> None:
     begin, end = markers(name, writer)
     block = f"{begin}\n{body.strip()}\n{end}"
     path.write_text(re.sub(re.escape(begin) + ".*?" + re.escape(end), lambda _: block, path.read_text(), flags=re.S))
+
+
+# A benchmark's measurements are kept in the repository (its campaigns and checkpoints are not: they can be made
+# again): a grid that outlives a sitting resumes from a fresh clone.
+ROWS = REPO_ROOT / "benchmarks" / "rows"
+
+
+def load_rows(name: str) -> list:
+    """The rows a benchmark has measured so far (none before its first run)."""
+    path = ROWS / f"{name}.jsonl"
+    return [json.loads(line) for line in path.read_text().splitlines() if line.strip()] if path.exists() else []
+
+
+def append_row(name: str, row: dict) -> None:
+    """Stream one measured row to the benchmark's record, as soon as it is measured."""
+    ROWS.mkdir(parents=True, exist_ok=True)
+    with (ROWS / f"{name}.jsonl").open("a") as f:
+        f.write(json.dumps(row) + "\n")

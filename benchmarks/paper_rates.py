@@ -19,14 +19,14 @@ does by default (the physical effects and the potentiometers that pass their lim
 data from another model), friction free.
 
 Scored: right (effect_found with exactly the hidden library effects; no_missing_effect with nothing hidden; nothing
-accepted for an effect outside the candidates), a wrong effect accepted, ambiguous, unexplained, and the 95%
-intervals' coverage of the truth where a hidden effect was accepted. The thresholds (diagnose.THRESHOLDS) were
-chosen on other seeds of another design (benchmarks/calibrate.py, seeds 0-5): the seeds here, from 100, chose
-nothing. Rows stream to OUT/rows.jsonl, seed by seed (every cell of a seed before the next seed): a rerun resumes,
-and the table covers whatever seeds are complete or partial. --markdown writes it into docs/diagnosis.md and its
-summary line into the README. `--variant` diagnoses the same campaigns with another configuration (VARIANTS) and
-prints it against the default campaign by campaign: same outcome, same accepted effects, replays and minutes.
-"""
+accepted for an effect outside the candidates), a wrong effect accepted, ambiguous, unexplained, and the 95% intervals'
+coverage of the truth where a hidden effect was accepted. The thresholds (diagnose.THRESHOLDS) were chosen on other
+seeds of another design (benchmarks/calibrate.py, seeds 0-5): the seeds here, from 100, chose nothing. Rows stream to
+benchmarks/rows/paper_rates.jsonl (kept in the repository; campaigns and checkpoints go to OUT), seed by seed (every
+cell of a seed before the next seed): a rerun resumes, from a fresh clone too, and the table covers whatever seeds are
+complete or partial. --markdown writes it into docs/diagnosis.md and its summary line into the README. `--variant`
+diagnoses the same campaigns with another configuration (VARIANTS) and prints it against the default campaign by
+campaign: same outcome, same accepted effects, replays and minutes."""
 
 import argparse
 import collections
@@ -38,7 +38,7 @@ from pathlib import Path
 import diagnosis
 import numpy as np
 from calibrate import seeds as parse_seeds
-from doc_blocks import REPO_ROOT, check_block, write_block
+from doc_blocks import REPO_ROOT, append_row, check_block, load_rows, write_block
 
 from rc1_drake.config import Friction, Stop
 from rc1_drake.diagnose import diagnose
@@ -286,16 +286,13 @@ def main():
         check_block(PAGE, BLOCK, WRITER)
         check_block(README, SUMMARY, WRITER)
     args.out.mkdir(parents=True, exist_ok=True)
-    path = args.out / "rows.jsonl"
-    rows = [json.loads(line) for line in path.read_text().splitlines()] if path.exists() else []
-    rows = [r for r in rows if r["trials_per_case"] == args.trials_per_case]
+    rows = [r for r in load_rows("paper_rates") if r["trials_per_case"] == args.trials_per_case]
     done = {(r["cell"], r["seed"]) for r in rows if r.get("variant", "default") == args.variant}
     jobs = [(c, s) for s in seed_list for c in cells if (c.label, s) not in done]
     for n, (cell, seed) in enumerate([] if args.table_only else jobs):
         row = one(cell, seed, args)
         rows.append(row)
-        with path.open("a") as f:
-            f.write(json.dumps(row) + "\n")
+        append_row("paper_rates", row)
         print(f"[{n + 1}/{len(jobs)}] {cell.label} seed {seed}: {row['verdict']}, accepted {row['accepted']} -> "
               f"{row['outcome']} ({row['wall_s'] / 60:.1f} min, {row['simulations']} replays)", flush=True)  # fmt: skip
     if args.variant != "default":
