@@ -154,8 +154,7 @@ def table(rows: list, calibration: set, cells: list, writer: str) -> tuple:
         for g in (gain, MIN_GAIN):
             on = [r for r in mine if reported(r, MIN_FALL, g)]
             cols.append((len(on), sum(is_right(r, cell) for r in on)))
-        # with the angles, the fall of their excess over their noise (Discovery.angle_fall)
-        falls = [r["angle_fall" if r.get("noise") else "fall"] for r in mine if reported(r, MIN_FALL, gain)]
+        falls = [r["fall"] for r in mine if reported(r, MIN_FALL, gain)]  # of the excess over the noise floor
         lines.append(
             f"| {cell.label} | {len(mine)} | {cols[0][0]} / {cols[1][0]} | "
             + (f"{cols[0][1]} / {cols[1][1]}" if cell.right else "-")

@@ -54,6 +54,21 @@ def test_a_hidden_failed_joint_bias_is_recovered_to_five_percent_named_and_check
     assert found.input_noise < 1e-3 * found.heldout_before  # no potentiometer noise: the replays' floor is nil
 
 
+def test_a_terms_interval_takes_the_angle_rows_scatter_from_the_angle_rows_alone():
+    """Hand-computed: two trials of 2 final, 2 path and 2 angle rows; a term moving the angle rows only. The path rows
+    scatter by 1, the angle rows by 3: the angle channel's variance is 4 * 9 / (4 * 11 / 12) and the term's standard
+    error sqrt(4 * that) / 4 (the sandwich with J = 1 on the four angle rows), not the path's and angles' pooled."""
+    from rc1_drake.diagnose.discover import _standard_errors
+
+    one = np.array([0.5, -0.5, 1.0, -1.0, 3.0, -3.0])
+    residual = np.r_[one, one]
+    jac = np.r_[0, 0, 0, 0, 1, 1, 0, 0, 0, 0, 1, 1].astype(float)[:, None]
+    blocks = [np.zeros((4, 4)), np.zeros((4, 4))]  # each trial's path rows (final and camera path), no input noise
+    variance = 4 * 9.0 / (4 * 11 / 12)
+    (error,) = _standard_errors((jac, residual, [6, 6]), blocks)
+    assert error == pytest.approx(math.sqrt(4 * variance) / 4)
+
+
 def test_the_fall_is_taken_of_the_error_beyond_the_noise_floor():
     """Hand-computed: 100 before, 40 after, a floor of 20 (angles) + 20 (the replays' input noise): all of the 60
     beyond the floor removed."""

@@ -470,8 +470,8 @@ def _standard_errors(fitted, blocks) -> np.ndarray:
     (docs/findings.md)."""
     jac, residual, sizes = fitted
     # The angle rows (after a trial's path rows) follow no replay: their noise is the potentiometers', white.
-    blocks = [np.pad(b, (0, n - len(b))) for b, n in zip(blocks, sizes, strict=True)]
     channels = np.concatenate([residual_channels(np.zeros(n), n - len(b)) for b, n in zip(blocks, sizes, strict=True)])
+    blocks = [np.pad(b, (0, n - len(b))) for b, n in zip(blocks, sizes, strict=True)]
     spread = np.diag(channel_variances(residual, channels, jac.shape[1]))
     cov, null = sandwich(jac, spread + block_diag(*blocks))
     return np.where(null, np.inf, np.sqrt(np.clip(np.diag(cov), 0.0, None)))
