@@ -65,12 +65,13 @@ class Cell:
     expected: tuple  # the library effects a right diagnosis accepts; () for nothing, None: outside the candidates
     sampling: str = "100 Hz"  # a key of SAMPLING: how the campaign is recorded
     friction: tuple = ()  # the truth's friction where it is not the paper's: (name, value) pairs
+    scale: float = 1.0  # the hidden library effects' strength, as a fraction of diagnosis.REFERENCE's
 
 
 def _library(effect: str, scale: float, truth_model: str = "drake") -> Cell:
     key, value = diagnosis.REFERENCE[effect]
     label = f"{effect} x{scale:g}" + ("" if truth_model == "drake" else f" ({truth_model})")
-    return Cell(label, truth_model, {key: value * scale}, (effect,))
+    return Cell(label, truth_model, {key: value * scale}, (effect,), scale=scale)
 
 
 # Data like another lab's (issue 42): 50 Hz, 0.2 deg potentiometer noise, the start phase within about +-15 deg and
@@ -241,6 +242,39 @@ def table(rows: list, cells: list) -> tuple:
     return "\n".join(lines), summary
 
 
+def targets(rows: list, cells: list) -> str:
+    """Issue 42's targets on the rows of `cells`, as a markdown table: measured, target, met."""
+    by_cell = {c.label: c for c in cells}
+    mine = [(r, by_cell[r["cell"]]) for r in rows if r["cell"] in by_cell]
+
+    def rate(hits: int, n: int) -> str:
+        return f"{hits} of {n} ({100 * hits / n:.0f}%)" if n else "-"
+
+    library = [r for r, c in mine if c.expected and c.scale == 1.0]
+    found = sum(r["outcome"] == "right" and bool(r["coverage"]) and all(r["coverage"]) for r in library)
+    wrong = sum(r["outcome"] == "wrong" for r, _ in mine)
+    nulls = {m: [r for r, c in mine if c.expected == () and c.truth_model == m] for m in ("drake", "reference")}
+    right = {m: sum(r["outcome"] == "right" for r in rs) for m, rs in nulls.items()}
+    met = [
+        found >= 0.9 * len(library) if library else None,
+        wrong <= 0.05 * len(mine) if mine else None,
+        right["drake"] >= 0.9 * len(nulls["drake"]) if nulls["drake"] else None,
+        right["reference"] >= 0.9 * len(nulls["reference"]) if nulls["reference"] else None,
+    ]
+    rows_out = [
+        ("a library effect at its reference strength found, every 95% interval holding the truth",
+         rate(found, len(library)), ">= 90%"),
+        ("a wrong effect accepted (every campaign)", rate(wrong, len(mine)), "<= 5%"),
+        ("this model's no-effect campaigns `no_missing_effect`", rate(right["drake"], len(nulls["drake"])), ">= 90%"),
+        ("reference.py's no-effect campaigns `no_missing_effect`", rate(right["reference"], len(nulls["reference"])),
+         ">= 90%, or the reason named"),
+    ]  # fmt: skip
+    lines = ["| target (issue 42) | measured | target | met |", "|---|---|---|---|"]
+    for (what, got, want), ok in zip(rows_out, met, strict=True):
+        lines.append(f"| {what} | {got} | {want} | {'-' if ok is None else 'yes' if ok else 'no'} |")
+    return "\n".join(lines)
+
+
 def paired(rows: list, variant: str) -> str:
     """The variant against the default on the campaigns both diagnosed."""
     default = {(r["cell"], r["seed"]): r for r in rows if r.get("variant", "default") == "default"}
@@ -305,9 +339,10 @@ def main():
         f"{args.trials_per_case} trials of each paper case per campaign, seeds {used[0] if used else '-'}-"
         f"{used[-1] if used else '-'}, {len(rows)} campaigns):"
     )
-    print(head, body, summary, sep="\n")
+    goals = targets(rows, cells)
+    print(head, body, summary, goals, sep="\n")
     if args.markdown:
-        write_block(PAGE, BLOCK, WRITER, head + "\n\n" + body)
+        write_block(PAGE, BLOCK, WRITER, head + "\n\n" + body + "\n\n" + goals)
         kinds = {c.label: hidden_kind(c) for c in CELLS}
         rates = {
             "measured": time.strftime("%Y-%m-%d"),
