@@ -36,7 +36,6 @@ from ..friction import (
     cholesky_solve,
     coulomb_law,
     friction_problem,
-    lu_solve,
     spd_solve,
 )
 from ..kinematics import jit
@@ -58,72 +57,76 @@ def chain_tangent(x, dx, w, mass, yaw_inertia, com, joint_in_parent, joint_in_ch
     out_mw = np.zeros((num, nv))
     out_bias = np.zeros((num, nv))
     out_gravity = np.zeros((num, nv))
+    # The chain at x, once for every direction: the joints' arms (a, b), positions and accelerations, and each
+    # module's centre of mass, its arm r, its acceleration and its Jacobian row.
+    a = e[:nj] * joint_in_parent
+    b = e[1:] * joint_in_child
     p = np.empty(nm, dtype=np.complex128)
     acc = np.empty(nm, dtype=np.complex128)
     joint_xy = np.empty(nj, dtype=np.complex128)
+    p[0] = x[0] + 1j * x[1]
+    acc[0] = 0.0
+    for j in range(nj):
+        joint_xy[j] = p[j] + a[j]
+        p[j + 1] = p[j] + a[j] - b[j]
+        acc[j + 1] = acc[j] - phi_dot[j] ** 2 * a[j] + phi_dot[j + 1] ** 2 * b[j]
+    r = e * com
+    c = p + r
+    a_com = np.empty(nm, dtype=np.complex128)
+    jac = np.zeros((nm, nv), dtype=np.complex128)
+    for k in range(nm):
+        a_com[k] = acc[k] - phi_dot[k] ** 2 * r[k]
+        jac[k, 0], jac[k, 1], jac[k, 2] = 1.0, 1j, 1j * (c[k] - p[0])
+        for j in range(k):
+            jac[k, 3 + j] = 1j * (c[k] - joint_xy[j])
     dp = np.empty(nm, dtype=np.complex128)
     dacc = np.empty(nm, dtype=np.complex128)
     djoint = np.empty(nj, dtype=np.complex128)
-    jac = np.empty(nv, dtype=np.complex128)
     djac = np.empty(nv, dtype=np.complex128)
     for d in range(num):
         dphi = np.cumsum(dx[d, 2:nv])
         dphi_dot = np.cumsum(dx[d, nv + 2 :])
-        p[0] = x[0] + 1j * x[1]
         dp[0] = dx[d, 0] + 1j * dx[d, 1]
-        acc[0] = 0.0
         dacc[0] = 0.0
         for j in range(nj):
-            a = e[j] * joint_in_parent[j]
-            b = e[j + 1] * joint_in_child[j]
-            da = 1j * dphi[j] * a
-            db = 1j * dphi[j + 1] * b
-            joint_xy[j] = p[j] + a
+            da = 1j * dphi[j] * a[j]
+            db = 1j * dphi[j + 1] * b[j]
             djoint[j] = dp[j] + da
-            p[j + 1] = p[j] + a - b
             dp[j + 1] = dp[j] + da - db
-            acc[j + 1] = acc[j] - phi_dot[j] ** 2 * a + phi_dot[j + 1] ** 2 * b
             dacc[j + 1] = (
                 dacc[j]
-                - 2.0 * phi_dot[j] * dphi_dot[j] * a
+                - 2.0 * phi_dot[j] * dphi_dot[j] * a[j]
                 - phi_dot[j] ** 2 * da
-                + 2.0 * phi_dot[j + 1] * dphi_dot[j + 1] * b
+                + 2.0 * phi_dot[j + 1] * dphi_dot[j + 1] * b[j]
                 + phi_dot[j + 1] ** 2 * db
             )
         for k in range(nm):
-            r = e[k] * com[k]
-            dr = 1j * dphi[k] * r
-            c = p[k] + r
+            dr = 1j * dphi[k] * r[k]
             dc = dp[k] + dr
-            a_k = acc[k] - phi_dot[k] ** 2 * r
-            da_k = dacc[k] - 2.0 * phi_dot[k] * dphi_dot[k] * r - phi_dot[k] ** 2 * dr
+            da_k = dacc[k] - 2.0 * phi_dot[k] * dphi_dot[k] * r[k] - phi_dot[k] ** 2 * dr
             n = 3 + k
-            jac[0], djac[0] = 1.0, 0.0
-            jac[1], djac[1] = 1j, 0.0
-            jac[2], djac[2] = 1j * (c - p[0]), 1j * (dc - dp[0])
+            djac[0], djac[1], djac[2] = 0.0, 0.0, 1j * (dc - dp[0])
             for j in range(k):
-                jac[3 + j] = 1j * (c - joint_xy[j])
                 djac[3 + j] = 1j * (dc - djoint[j])
             jw, djw = 0.0 + 0.0j, 0.0 + 0.0j
             for i in range(n):
-                jw += jac[i] * w[d, i]
+                jw += jac[k, i] * w[d, i]
                 djw += djac[i] * w[d, i]
             m = mass[k]
             for i in range(n):
-                out_mw[d, i] += m * (np.conj(djac[i]) * jw + np.conj(jac[i]) * djw).real
-                out_bias[d, i] += m * (np.conj(djac[i]) * a_k + np.conj(jac[i]) * da_k).real
+                out_mw[d, i] += m * (np.conj(djac[i]) * jw + np.conj(jac[k, i]) * djw).real
+                out_bias[d, i] += m * (np.conj(djac[i]) * a_com[k] + np.conj(jac[k, i]) * da_k).real
                 out_gravity[d, i] += m * (np.conj(djac[i]) * gravity_xy).real
     return out_mw, out_bias, out_gravity
 
 
 @jit
-def wheel_local_tangent(x, dx, joint_in_parent, joint_in_child, wheel_module, wheel_offset, wheel_toe):
+def wheel_frame(x, joint_in_parent, joint_in_child, wheel_module, wheel_offset, wheel_toe):
     """The wheels' local Jacobians L_w = conj(direction_w) J_w (rows: v_long + i v_lat, friction.friction_step)
-    at x, (W, 16) complex, and their derivatives along each direction dx[p], (P, W, 16) complex."""
+    at x, (W, 16) complex, and the chain's terms wheel_local_direction takes: (local, e, p, joint_xy)."""
     nj = joint_in_parent.shape[0]
     nv = nj + 3
     nw = wheel_module.shape[0]
-    num = dx.shape[0]
     phi = np.cumsum(x[2:nv])
     e = np.exp(1j * phi)
     p = np.empty(nj + 1, dtype=np.complex128)
@@ -142,27 +145,46 @@ def wheel_local_tangent(x, dx, joint_in_parent, joint_in_child, wheel_module, wh
         local[w, 2] = turn * 1j * (position - p[0])
         for j in range(k):
             local[w, 3 + j] = turn * 1j * (position - joint_xy[j])
-    dlocal = np.zeros((num, nw, nv), dtype=np.complex128)
+    return local, e, p, joint_xy
+
+
+@jit
+def wheel_local_direction(dx, frame, joint_in_parent, joint_in_child, wheel_module, wheel_offset, wheel_toe, out):
+    """The local Jacobians' derivative along one state direction dx (32,) into `out` (W, 16) complex (columns past
+    a wheel's span are left as they are: zero in a fresh buffer); `frame`: wheel_frame's at the state."""
+    _, e, p, joint_xy = frame
+    nj = joint_in_parent.shape[0]
+    nv = nj + 3
+    dphi = np.cumsum(dx[2:nv])
     dp = np.empty(nj + 1, dtype=np.complex128)
     djoint = np.empty(nj, dtype=np.complex128)
-    for d in range(num):
-        dphi = np.cumsum(dx[d, 2:nv])
-        dp[0] = dx[d, 0] + 1j * dx[d, 1]
-        for j in range(nj):
-            djoint[j] = dp[j] + 1j * dphi[j] * e[j] * joint_in_parent[j]
-            dp[j + 1] = djoint[j] - 1j * dphi[j + 1] * e[j + 1] * joint_in_child[j]
-        for w in range(nw):
-            k = wheel_module[w]
-            position = p[k] + e[k] * wheel_offset[w]
-            dposition = dp[k] + 1j * dphi[k] * e[k] * wheel_offset[w]
-            turn = np.conj(e[k] * wheel_toe[w])
-            dturn = -1j * dphi[k] * turn  # conj(i dphi e) = -i dphi conj(e)
-            dlocal[d, w, 0] = dturn
-            dlocal[d, w, 1] = dturn * 1j
-            dlocal[d, w, 2] = 1j * (dturn * (position - p[0]) + turn * (dposition - dp[0]))
-            for j in range(k):
-                dlocal[d, w, 3 + j] = 1j * (dturn * (position - joint_xy[j]) + turn * (dposition - djoint[j]))
-    return local, dlocal
+    dp[0] = dx[0] + 1j * dx[1]
+    for j in range(nj):
+        djoint[j] = dp[j] + 1j * dphi[j] * e[j] * joint_in_parent[j]
+        dp[j + 1] = djoint[j] - 1j * dphi[j + 1] * e[j + 1] * joint_in_child[j]
+    for w in range(wheel_module.shape[0]):
+        k = wheel_module[w]
+        position = p[k] + e[k] * wheel_offset[w]
+        dposition = dp[k] + 1j * dphi[k] * e[k] * wheel_offset[w]
+        turn = np.conj(e[k] * wheel_toe[w])
+        dturn = -1j * dphi[k] * turn  # conj(i dphi e) = -i dphi conj(e)
+        out[w, 0] = dturn
+        out[w, 1] = dturn * 1j
+        out[w, 2] = 1j * (dturn * (position - p[0]) + turn * (dposition - dp[0]))
+        for j in range(k):
+            out[w, 3 + j] = 1j * (dturn * (position - joint_xy[j]) + turn * (dposition - djoint[j]))
+
+
+@jit
+def wheel_local_tangent(x, dx, joint_in_parent, joint_in_child, wheel_module, wheel_offset, wheel_toe):
+    """The wheels' local Jacobians at x, (W, 16) complex (wheel_frame), and their derivatives along each direction
+    dx[p], (P, W, 16) complex."""
+    frame = wheel_frame(x, joint_in_parent, joint_in_child, wheel_module, wheel_offset, wheel_toe)
+    dlocal = np.zeros((dx.shape[0], wheel_module.shape[0], x.shape[0] // 2), dtype=np.complex128)
+    for d in range(dx.shape[0]):
+        wheel_local_direction(dx[d], frame, joint_in_parent, joint_in_child, wheel_module, wheel_offset, wheel_toe,
+                              dlocal[d])  # fmt: skip
+    return frame[0], dlocal
 
 
 @jit
@@ -213,7 +235,8 @@ def friction_tangent(
     mu_long, mu_lat, c_long, c_lat = laws.mu_long, laws.mu_lat, laws.c_long, laws.c_lat
     # The exact tangent may lose definiteness where a Stribeck law falls, or symmetry with a discrepancy term: LU then
     low = cholesky(K) if laws.sites.shape[0] == 0 else np.zeros((0, 0))
-    local, dlocal = wheel_local_tangent(x, dx, joint_in_parent, joint_in_child, wheel_module, wheel_offset, toe)
+    frame = wheel_frame(x, joint_in_parent, joint_in_child, wheel_module, wheel_offset, toe)
+    local, dlocal = frame[0], np.zeros((nw, nv), dtype=np.complex128)  # dlocal: one direction's, refilled
     free = params[FAILED] == FREE
     kd = servo_gains[1]
     disc = slice(PER_WHEEL + 2 * nw, PER_WHEEL + 2 * nw + NUM_TERMS)
@@ -221,86 +244,143 @@ def friction_tangent(
     sites = theta.any() or dparams[:, disc].any()
     if sites:
         module, offset, unit = site_arrays(chain)
-        site_local, site_dlocal = wheel_local_tangent(x, dx, joint_in_parent, joint_in_child, module, offset, unit)
+        site_frame = wheel_frame(x, joint_in_parent, joint_in_child, module, offset, unit)
+        site_local, site_dlocal = site_frame[0], np.zeros((module.shape[0], nv), dtype=np.complex128)
+    # What does not depend on the direction, once per step: each wheel's slip and law terms (rows: the law's slope
+    # along and across, the forces f_long and f_lat, then _coulomb_partials' along (mu, a) and across (mu, a, r)).
+    slip = np.empty(nw, dtype=np.complex128)
+    law = np.empty((nw, 9))
+    for w in range(nw):
+        u = 0.0 + 0.0j
+        for a in range(spans[w]):
+            u += local[w, a] * v_plus[a]
+        slip[w] = u
+        n_w = normal[w]
+        c_l, _, t_l = coulomb_law(u.real, mu_long * n_w, eps, shape[1], 0.0, shape[3], False)
+        c_t, _, t_t = coulomb_law(u.imag, mu_lat * n_w, eps, shape[0], shape[2], shape[3], False)
+        law[w, 0], law[w, 1] = c_long + t_l, c_lat + t_t
+        law[w, 2], law[w, 3] = -(c_long * u.real + c_l), -(c_lat * u.imag + c_t)
+        law[w, 4], law[w, 5], _ = _coulomb_partials(u.real, mu_long * n_w, eps, shape[1], 0.0, shape[3])
+        law[w, 6], law[w, 7], law[w, 8] = _coulomb_partials(u.imag, mu_lat * n_w, eps, shape[0], shape[2], shape[3])
+    if sites:
+        site_terms = _discrepancy_terms(site_local, v_plus, x, theta, free, eps)
     out = np.empty((dx.shape[0], nv))
+    moving = np.ascontiguousarray(dx[:, nv:]) @ np.ascontiguousarray(mass_matrix.T)  # M dv, every direction at once
+    free_rate = np.where(free, v_plus[3:], 0.0)
     for d in range(dx.shape[0]):
         dp = dparams[d]
-        dR = dmass_w[d] - mass_matrix @ dx[d, nv:] - dt * dother[d]
-        dR[3:] += dt * dp[C_JOINT] * np.where(free, v_plus[3:], 0.0)
+        dR = dmass_w[d] - moving[d] - dt * dother[d]
+        dR[3:] += dt * dp[C_JOINT] * free_rate
         dF = np.zeros(nv)
+        wheel_local_direction(dx[d], frame, joint_in_parent, joint_in_child, wheel_module, wheel_offset, toe, dlocal)
         for w in range(nw):
-            u = 0.0 + 0.0j
+            u = slip[w]
             du = 0.0 + 0.0j
             for a in range(spans[w]):
-                u += local[w, a] * v_plus[a]
-                du += dlocal[d, w, a] * v_plus[a]
+                du += dlocal[w, a] * v_plus[a]
             dtoe = dp[PER_WHEEL + nw + w]
             du += -1j * u * dtoe  # a toe turns the wheel's frame: dL/dtoe = -i L
             n_w, dn_w = normal[w], dp[PER_WHEEL + w]
-            c_l, _, t_l = coulomb_law(u.real, mu_long * n_w, eps, shape[1], 0.0, shape[3], False)
-            c_t, _, t_t = coulomb_law(u.imag, mu_lat * n_w, eps, shape[0], shape[2], shape[3], False)
-            f_l, f_t = -(c_long * u.real + c_l), -(c_lat * u.imag + c_t)
-            pl_mu, pl_a, _ = _coulomb_partials(u.real, mu_long * n_w, eps, shape[1], 0.0, shape[3])
-            pt_mu, pt_a, pt_r = _coulomb_partials(u.imag, mu_lat * n_w, eps, shape[0], shape[2], shape[3])
             df_l = (
-                -(c_long + t_l) * du.real
+                -law[w, 0] * du.real
                 - dp[C_LONG] * u.real
-                - pl_mu * (dp[MU_LONG] * n_w + mu_long * dn_w)
-                - pl_a * dp[SHAPE][1]
+                - law[w, 4] * (dp[MU_LONG] * n_w + mu_long * dn_w)
+                - law[w, 5] * dp[SHAPE][1]
             )
             df_t = (
-                -(c_lat + t_t) * du.imag
+                -law[w, 1] * du.imag
                 - dp[C_LAT] * u.imag
-                - pt_mu * (dp[MU_LAT] * n_w + mu_lat * dn_w)
-                - pt_a * dp[SHAPE][0]
-                - pt_r * dp[SHAPE][2]
+                - law[w, 6] * (dp[MU_LAT] * n_w + mu_lat * dn_w)
+                - law[w, 7] * dp[SHAPE][0]
+                - law[w, 8] * dp[SHAPE][2]
             )
+            f_l, f_t = law[w, 2], law[w, 3]
             for a in range(spans[w]):
-                dlocal_a = dlocal[d, w, a] - 1j * local[w, a] * dtoe
+                dlocal_a = dlocal[w, a] - 1j * local[w, a] * dtoe
                 dF[a] += dlocal_a.real * f_l + dlocal_a.imag * f_t + jac_long[w, a] * df_l + jac_lat[w, a] * df_t
         for j in range(3, nv):
             if free[j - 3]:
                 dF[j] -= dp[JOINT_COULOMB] * v_plus[j] / np.sqrt(v_plus[j] ** 2 + JOINT_EPS_RAD_S**2)
             dF[j] += linear[j] * (dcommand[d, j - 3] + kd * dx[d, nv + j])
         if sites:
-            dF += _discrepancy_tangent(site_local, site_dlocal[d], v_plus, x, dx[d], theta, dp[disc], free, eps)
+            wheel_local_direction(dx[d], site_frame, joint_in_parent, joint_in_child, module, offset, unit, site_dlocal)
+            dF += _discrepancy_tangent(site_local, site_dlocal, v_plus, dx[d], theta, dp[disc], free, site_terms)
         head = dp[HEAD_MU] * params[HEAD_NORMAL] + params[HEAD_MU] * dp[HEAD_NORMAL]
         if head != 0.0:
             root = np.sqrt(v_plus[0] ** 2 + v_plus[1] ** 2 + eps * eps)
             dF[0] -= head * v_plus[0] / root
             dF[1] -= head * v_plus[1] / root
         dR -= dt * dF
-        out[d] = -(cholesky_solve(low, dR) if low.shape[0] else lu_solve(K, dR))
-    return out
+        out[d] = -dR
+    if low.shape[0]:
+        for d in range(out.shape[0]):
+            out[d] = cholesky_solve(low, out[d])
+        return out
+    return _lu_solve_rows(K, out)
 
 
 @jit
-def _discrepancy_tangent(local, dlocal, v_plus, x, dx, theta, dtheta, free, eps):
+def _lu_solve_rows(matrix, rows):
+    """matrix^-1 applied to each row of `rows` (P, n) in one LAPACK call (one a direction costs more than the rest of
+    the direction's tangent); NaN where the matrix is not finite, as friction.lu_solve."""
+    if not np.isfinite(matrix).all():
+        return np.full(rows.shape, np.nan)
+    return np.ascontiguousarray(np.linalg.solve(matrix, np.ascontiguousarray(rows.T)).T)
+
+
+@jit
+def _discrepancy_terms(local, v_plus, x, theta, free, eps):
+    """What _discrepancy_tangent takes that does not depend on the direction, once per step: each site's velocity
+    (long + i lat), force (2,), its rate (2, 2) and its shapes (2, NSK) at v+; each failed joint's shapes (NJK,)."""
+    nsites = local.shape[0]
+    u = np.zeros(nsites, dtype=np.complex128)
+    force, rate, shapes = np.zeros((nsites, 2)), np.zeros((nsites, 2, 2)), np.zeros((nsites, 2, NSK))
+    for s in range(nsites):
+        g = SITE_GROUP[s]
+        if g < 0:
+            continue
+        for a in range(v_plus.shape[0]):
+            u[s] += local[s, a] * v_plus[a]
+        force[s], rate[s] = site_force(u[s].real, u[s].imag, theta[g * NSK : (g + 1) * NSK], eps)
+        shapes[s] = site_shapes(u[s].real, u[s].imag, eps)
+    joints = np.zeros((free.shape[0], NJK))
+    for j in range(free.shape[0]):
+        if free[j]:
+            joints[j] = joint_shapes(
+                x[3 + j], v_plus[3 + j], JOINT_EPS_RAD_S
+            )  # bias, spring at the start; drag, dry at v+
+    return u, force, rate, shapes, joints
+
+
+@jit
+def _discrepancy_tangent(local, dlocal, v_plus, dx, theta, dtheta, free, terms):
     """The discrepancy force's change (discrepancy.py) at fixed v+ along one direction: the sites' Jacobians move
     with the state (dlocal), the coefficients by dtheta; in failed joints the bias and spring (at the step's
-    start) move with the angle too. Its change with v+ is in the Newton matrix (friction.assemble_step)."""
+    start) move with the angle too (`terms`: _discrepancy_terms). Its change with v+ is in the Newton matrix
+    (friction.assemble_step)."""
+    u, force, rate, shapes, joints = terms
     nv = v_plus.shape[0]
     out = np.zeros(nv)
     for s in range(local.shape[0]):
         g = SITE_GROUP[s]
         if g < 0:
             continue
-        u, du = 0.0 + 0.0j, 0.0 + 0.0j
+        du = 0.0 + 0.0j
         for a in range(nv):
-            u += local[s, a] * v_plus[a]
             du += dlocal[s, a] * v_plus[a]
-        coeff, dcoeff = theta[g * NSK : (g + 1) * NSK], dtheta[g * NSK : (g + 1) * NSK]
-        f, rate = site_force(u.real, u.imag, coeff, eps)
-        df = rate[:, 0] * du.real + rate[:, 1] * du.imag + site_shapes(u.real, u.imag, eps) @ dcoeff
+        df_long = rate[s, 0, 0] * du.real + rate[s, 0, 1] * du.imag
+        df_lat = rate[s, 1, 0] * du.real + rate[s, 1, 1] * du.imag
+        for i in range(NSK):  # a loop, not a BLAS call per site and direction
+            df_long += shapes[s, 0, i] * dtheta[g * NSK + i]
+            df_lat += shapes[s, 1, i] * dtheta[g * NSK + i]
         for a in range(nv):
-            out[a] += dlocal[s, a].real * f[0] + dlocal[s, a].imag * f[1] + local[s, a].real * df[0]
-            out[a] += local[s, a].imag * df[1]
+            out[a] += dlocal[s, a].real * force[s, 0] + dlocal[s, a].imag * force[s, 1] + local[s, a].real * df_long
+            out[a] += local[s, a].imag * df_lat
     joint, djoint = theta[NUM_TERMS - NJK :], dtheta[NUM_TERMS - NJK :]
     for j in range(free.shape[0]):
         if free[j]:
             k = 3 + j
-            known = joint_shapes(x[k], v_plus[k], JOINT_EPS_RAD_S)  # bias, spring at the start; drag, dry at v+
-            out[k] += djoint @ known - joint[1] * dx[k]
+            out[k] += djoint @ joints[j] - joint[1] * dx[k]
     return out
 
 
