@@ -3,15 +3,15 @@ discrepancy model (discrepancy.py) at the diagnosis's final model, sparse, its s
 then name the few terms that survive in physical words, check them by replaying each trial with terms fitted
 without it, and say which library effect's shape each one matches.
 
-The columns are exact (the tangent model's sensitivities, one replay per trial for every term and every library
-coordinate at once). The sparse fit is orthogonal matching pursuit (scikit-learn's) on normalized columns: with
-dozens of correlated columns, PySINDy's thresholded least squares (STLSQ) kept large cancelling coefficients and
-lost the true term (docs/findings.md). How many terms is chosen by leaving one trial out: the fewest whose
-held-out cost is within one standard error of the best, and none
-at all unless it removes MIN_GAIN and MIN_FALL of the held-out cost without terms beyond the noise floor: what the
-rows cost at the truth from the noise discovery measures (the replays' input noise, resampled; the angles' count). The
-camera's noise is not in it (its stated sigma is a scale, not a measurement): the gate errs toward no term. A trial's
-path rows weigh as in the diagnosis's fits (linearize.trial_weights): a chaotic replay's misfit counts as its noise.
+The replay's columns are exact (the tangent model's sensitivities, one replay per trial for every term; the library
+coordinates' likewise, taken only once a term survives, to compare its shape with). The sparse fit is orthogonal
+matching pursuit (scikit-learn's) on normalized columns: with dozens of correlated columns, PySINDy's thresholded least
+squares (STLSQ) kept large cancelling coefficients and lost the true term (docs/findings.md). How many terms is chosen
+by leaving one trial out: the fewest whose held-out cost is within one standard error of the best, and none at all
+unless it removes MIN_GAIN and MIN_FALL of the held-out cost without terms beyond the noise floor: what the rows cost at
+the truth from the noise discovery measures (the replays' input noise, resampled; the angles' count). The camera's noise
+is not in it (its stated sigma is a scale, not a measurement): the gate errs toward no term. A trial's path rows weigh
+as in the diagnosis's fits (linearize.trial_weights): a chaotic replay's misfit counts as its noise.
 
 With `angles`, each trial also contributes its working joints' measured angles against the model's servos driven
 by the trial's command (sysid.residual.angle_residual: a servo's tracking error is its load, which the kinematic
@@ -208,14 +208,13 @@ def discover(
     blocks = [w[0] ** 2 * b for w, b in zip(weights, blocks, strict=True)]  # the path rows' covariances, weighed
     parts = evaluator.map(
         corrected_and_jacobian,
-        [(t, friction, effects, tuple(keys + library), view) for t in trials],
+        [(t, friction, effects, tuple(keys), view) for t in trials],
         "the discrepancy's columns (replays and twins)",
     )
     parts = _weighed(parts, weights)
     r = [p[0] for p in parts]
     columns = [p[1][:, : len(keys)] for p in parts]
-    library_columns = np.vstack([p[1][:, len(keys) : len(keys) + len(library)] for p in parts])
-    r, columns = _without_nuisance(r, columns, [p[1][:, len(keys) + len(library) :] for p in parts])
+    r, columns = _without_nuisance(r, columns, [p[1][:, len(keys) :] for p in parts])
     path, cost_without = _sparsity_path(r, columns, sizes)
     noise = float(sum(counts))
     input_noise = float(sum(np.trace(b) for b in blocks))
@@ -233,6 +232,7 @@ def discover(
         return Discovery([], path, float(cost_without.sum()), 0.0, 0.0, dict(effects), spent, **floors)
     model = {**effects, **values}
     errors = _standard_errors(fitted, blocks)
+    library_columns = _library_columns(trials, friction, effects, library, evaluator, weights, _View(Servo(), angles))
     before = sum(float(x @ x) for x in r)
     held = _held_out_by_replay(trials, friction, model, values, fitted, evaluator, view)
     held = [x * w for x, w in zip(held, weights, strict=True)]
@@ -494,6 +494,17 @@ def _held_out_by_replay(trials, friction, model, values, fitted, evaluator, view
         moved = {key: values[key] + m for key, m in zip(values, move[: len(values)], strict=True)}
         jobs.append((t, friction, {**model, **_clipped(moved)}, view.moved(move[len(values) :])))
     return evaluator.map(corrected_residual, jobs, "each trial held out")
+
+
+def _library_columns(trials, friction, effects, names, evaluator, weights, view: _View) -> np.ndarray:
+    """The library coordinates' columns at the model discovery started from, weighed as the terms' were: what a
+    reported term's shape is compared with (_matches), taken only when there is one."""
+    parts = evaluator.map(
+        corrected_and_jacobian,
+        [(t, friction, effects, tuple(names), view) for t in trials],
+        "the library's columns, for the terms' shapes",
+    )
+    return np.vstack([jac[:, : len(names)] for _, jac in _weighed(parts, weights)])
 
 
 def _matches(prediction, library_columns, names) -> list[dict]:
