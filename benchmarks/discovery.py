@@ -177,7 +177,7 @@ def main():
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--angles", action="store_true", help="discovery with the angles (module docstring)")
     parser.add_argument("--design", choices=DESIGNS, default="short", help="the campaigns' trials (DESIGNS)")
-    parser.add_argument("--out", type=Path, help="rows and campaigns (default benchmarks/out/<the table's block>)")
+    parser.add_argument("--out", type=Path, help="campaigns (default benchmarks/out/<block>; rows: benchmarks/rows)")
     parser.add_argument("--markdown", action="store_true", help="write the table into docs/diagnosis.md")
     parser.add_argument("--table-only", action="store_true", help="print (and write) the table of the rows so far")
     args = parser.parse_args()
