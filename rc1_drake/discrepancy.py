@@ -105,10 +105,14 @@ def joint_shapes(q, q_dot, eps):
 def site_force(u_long, u_lat, coefficients, eps):
     """A site's force (f_long, f_lat) and its rate d f / d (u_long, u_lat) (2, 2) for its group's coefficients."""
     along, across = site_shape_rates(u_long, u_lat, eps)
-    rate = np.empty((2, 2))
-    rate[:, 0] = along @ coefficients
-    rate[:, 1] = across @ coefficients
-    return site_shapes(u_long, u_lat, eps) @ coefficients, rate
+    shapes = site_shapes(u_long, u_lat, eps)
+    force, rate = np.zeros(2), np.zeros((2, 2))
+    for i in range(2):  # loops, not BLAS calls: a step makes ~90 of these
+        for k in range(NSK):
+            force[i] += shapes[i, k] * coefficients[k]
+            rate[i, 0] += along[i, k] * coefficients[k]
+            rate[i, 1] += across[i, k] * coefficients[k]
+    return force, rate
 
 
 @jit

@@ -191,11 +191,34 @@ def spd_solve(matrix, rhs):
 
 @jit
 def lu_solve(matrix, rhs):
-    """matrix^-1 rhs by LU; NaN where the matrix is not finite (a run that blew up: the engine then stops it with
-    an error, where LAPACK's exception from compiled code can corrupt the heap)."""
+    """matrix^-1 rhs by LU with partial pivoting, by hand as cholesky (16 x 16: LAPACK's call costs more); NaN where
+    the matrix is not finite or singular (a run that blew up: the engine then stops it with an error, where LAPACK's
+    exception from compiled code can corrupt the heap)."""
+    n = matrix.shape[0]
     if not np.isfinite(matrix).all():
-        return np.full(rhs.shape[0], np.nan)
-    return np.linalg.solve(matrix, rhs)
+        return np.full(n, np.nan)
+    a, out = matrix.copy(), rhs.astype(np.float64)
+    for k in range(n):
+        pivot = k
+        for i in range(k + 1, n):
+            if abs(a[i, k]) > abs(a[pivot, k]):
+                pivot = i
+        if a[pivot, k] == 0.0:
+            return np.full(n, np.nan)
+        if pivot != k:
+            for j in range(n):
+                a[k, j], a[pivot, j] = a[pivot, j], a[k, j]
+            out[k], out[pivot] = out[pivot], out[k]
+        for i in range(k + 1, n):
+            factor = a[i, k] / a[k, k]
+            for j in range(k + 1, n):
+                a[i, j] -= factor * a[k, j]
+            out[i] -= factor * out[k]
+    for i in range(n - 1, -1, -1):
+        for j in range(i + 1, n):
+            out[i] -= a[i, j] * out[j]
+        out[i] /= a[i, i]
+    return out
 
 
 @jit
@@ -313,12 +336,19 @@ def assemble_step(v_next, tangent, laws, exact=False):
     # The discrepancy model (discrepancy.py), by its exact rate in both modes: its terms are small beside Eqs. 4-5.
     for s in range(sites.shape[0]):
         along_s, across_s = sites[s, :n], sites[s, n : 2 * n]
-        f_s, rate = site_force(along_s @ v_next, across_s @ v_next, sites[s, 2 * n :], eps)
-        force += along_s * f_s[0] + across_s * f_s[1]
-        for a in range(n):
+        span = n  # a site moves with the coordinates up to its module's joint only
+        while span > 0 and along_s[span - 1] == 0.0 and across_s[span - 1] == 0.0:
+            span -= 1
+        u_long, u_lat = 0.0, 0.0
+        for a in range(span):  # loops, not BLAS calls: a step makes ~90 of these
+            u_long += along_s[a] * v_next[a]
+            u_lat += across_s[a] * v_next[a]
+        f_s, rate = site_force(u_long, u_lat, sites[s, 2 * n :], eps)
+        for a in range(span):
+            force[a] += along_s[a] * f_s[0] + across_s[a] * f_s[1]
             along = rate[0, 0] * along_s[a] + rate[1, 0] * across_s[a]
             across = rate[0, 1] * along_s[a] + rate[1, 1] * across_s[a]
-            for b in range(n):
+            for b in range(span):
                 matrix[a, b] -= dt * (along * along_s[b] + across * across_s[b])
     return force, matrix, linear
 
@@ -547,12 +577,18 @@ def friction_problem(
     joint_coulomb[3:] = np.where(state == FREE, params[JOINT_COULOMB], 0.0)
     spring, stop_rate = compliant_stop(x, params, dt)
     theta = params[PER_WHEEL + 2 * nw : PER_WHEEL + 2 * nw + NUM_TERMS]
-    # The discrepancy model: no sites when it has no term (the paper's model), as empty views: nothing allocated.
+    # The discrepancy model: only the sites with a term (none: the paper's model, an empty view, nothing allocated).
     sites = jac_long[:0]
     if theta.any():
-        sites = np.empty((NUM_SITES, 2 * nv + NSK))
-        sites[:, :nv], sites[:, nv : 2 * nv] = site_jacobians(x, chain)
-        sites[:, 2 * nv :] = site_coefficients(theta)
+        coefficients = site_coefficients(theta)
+        acting = np.zeros(NUM_SITES, dtype=np.bool_)
+        for s in range(NUM_SITES):
+            acting[s] = coefficients[s].any()
+        if acting.any():
+            along, across = site_jacobians(x, chain)
+            sites = np.empty((int(acting.sum()), 2 * nv + NSK))
+            sites[:, :nv], sites[:, nv : 2 * nv] = along[acting], across[acting]
+            sites[:, 2 * nv :] = coefficients[acting]
         joint = theta[NUM_TERMS - NJK :]
         for j in range(state.shape[0]):
             if state[j] == FREE:  # bias and spring at the step's start; drag and dry in the implicit solve
