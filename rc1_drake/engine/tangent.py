@@ -200,6 +200,31 @@ def _coulomb_partials(u, mu_n, eps, asymmetry, ratio, speed):
 
 
 @jit
+def _wheel_laws(local, v_plus, laws):
+    """What friction_tangent takes of each wheel that does not depend on the direction, once per step: its slip
+    (v_long + i v_lat) and its law's terms (rows: the slope along and across, the forces f_long and f_lat, then
+    _coulomb_partials' along (mu, a) and across (mu, a, r))."""
+    spans, normal, eps, shape = laws.spans, laws.normal_force, laws.eps, laws.shape
+    mu_long, mu_lat, c_long, c_lat = laws.mu_long, laws.mu_lat, laws.c_long, laws.c_lat
+    nw = local.shape[0]
+    slip = np.empty(nw, dtype=np.complex128)
+    law = np.empty((nw, 9))
+    for w in range(nw):
+        u = 0.0 + 0.0j
+        for a in range(spans[w]):
+            u += local[w, a] * v_plus[a]
+        slip[w] = u
+        n_w = normal[w]
+        c_l, _, t_l = coulomb_law(u.real, mu_long * n_w, eps, shape[1], 0.0, shape[3], False)
+        c_t, _, t_t = coulomb_law(u.imag, mu_lat * n_w, eps, shape[0], shape[2], shape[3], False)
+        law[w, 0], law[w, 1] = c_long + t_l, c_lat + t_t
+        law[w, 2], law[w, 3] = -(c_long * u.real + c_l), -(c_lat * u.imag + c_t)
+        law[w, 4], law[w, 5], _ = _coulomb_partials(u.real, mu_long * n_w, eps, shape[1], 0.0, shape[3])
+        law[w, 6], law[w, 7], law[w, 8] = _coulomb_partials(u.imag, mu_lat * n_w, eps, shape[0], shape[2], shape[3])
+    return slip, law
+
+
+@jit
 def friction_tangent(
     x,
     dx,
@@ -230,9 +255,8 @@ def friction_tangent(
         x, other_force, mass_matrix, dt, params, servo_command, servo_power, servo_gains, chain
     )
     _, K, linear = assemble_step(v_plus, True, laws, True)
-    jac_long, jac_lat, spans, normal, eps, shape = (laws.jac_long, laws.jac_lat, laws.spans, laws.normal_force,
-                                                    laws.eps, laws.shape)  # fmt: skip
-    mu_long, mu_lat, c_long, c_lat = laws.mu_long, laws.mu_lat, laws.c_long, laws.c_lat
+    jac_long, jac_lat, spans, normal, eps = laws.jac_long, laws.jac_lat, laws.spans, laws.normal_force, laws.eps
+    mu_long, mu_lat = laws.mu_long, laws.mu_lat
     # The exact tangent may lose definiteness where a Stribeck law falls, or symmetry with a discrepancy term: LU then
     low = cholesky(K) if laws.sites.shape[0] == 0 else np.zeros((0, 0))
     frame = wheel_frame(x, joint_in_parent, joint_in_child, wheel_module, wheel_offset, toe)
@@ -246,22 +270,7 @@ def friction_tangent(
         module, offset, unit = site_arrays(chain)
         site_frame = wheel_frame(x, joint_in_parent, joint_in_child, module, offset, unit)
         site_local, site_dlocal = site_frame[0], np.zeros((module.shape[0], nv), dtype=np.complex128)
-    # What does not depend on the direction, once per step: each wheel's slip and law terms (rows: the law's slope
-    # along and across, the forces f_long and f_lat, then _coulomb_partials' along (mu, a) and across (mu, a, r)).
-    slip = np.empty(nw, dtype=np.complex128)
-    law = np.empty((nw, 9))
-    for w in range(nw):
-        u = 0.0 + 0.0j
-        for a in range(spans[w]):
-            u += local[w, a] * v_plus[a]
-        slip[w] = u
-        n_w = normal[w]
-        c_l, _, t_l = coulomb_law(u.real, mu_long * n_w, eps, shape[1], 0.0, shape[3], False)
-        c_t, _, t_t = coulomb_law(u.imag, mu_lat * n_w, eps, shape[0], shape[2], shape[3], False)
-        law[w, 0], law[w, 1] = c_long + t_l, c_lat + t_t
-        law[w, 2], law[w, 3] = -(c_long * u.real + c_l), -(c_lat * u.imag + c_t)
-        law[w, 4], law[w, 5], _ = _coulomb_partials(u.real, mu_long * n_w, eps, shape[1], 0.0, shape[3])
-        law[w, 6], law[w, 7], law[w, 8] = _coulomb_partials(u.imag, mu_lat * n_w, eps, shape[0], shape[2], shape[3])
+    slip, law = _wheel_laws(local, v_plus, laws)
     if sites:
         site_terms = _discrepancy_terms(site_local, v_plus, x, theta, free, eps)
     out = np.empty((dx.shape[0], nv))
