@@ -11,18 +11,17 @@ diagnosis.REFERENCE, `xS` scaling its strength) is synthesized once and diagnose
 one checkpoint, so another value replays only what it changes. A verdict is right when it is the whole answer
 (no_missing_effect with nothing hidden; effect_found with the hidden effect alone). The value with the most right
 verdicts on the calibration seeds is chosen (ties: the stricter); every value's rates are reported on the report
-seeds, which chose nothing. Rows stream to OUT/rows.jsonl: a rerun resumes. --markdown writes the table into
-docs/diagnosis.md.
+seeds, which chose nothing. Rows stream to benchmarks/rows/calibrate.jsonl: a rerun resumes. --markdown writes the
+table into docs/diagnosis.md.
 """
 
 import argparse
-import json
 import sys
 import time
 from pathlib import Path
 
 import diagnosis
-from doc_blocks import REPO_ROOT, check_block, write_block
+from doc_blocks import REPO_ROOT, append_row, check_block, load_rows, rows_file, write_block
 
 from rc1_drake.config import FRICTION_NAMES, Friction
 from rc1_drake.diagnose import Thresholds, diagnose
@@ -142,12 +141,8 @@ def main():
     if args.markdown:
         check_block(PAGE, BLOCK, WRITER)
     args.out.mkdir(parents=True, exist_ok=True)
-    path = args.out / "rows.jsonl"
-    done = {}
-    if path.exists():
-        for line in path.read_text().splitlines():
-            r = json.loads(line)
-            done[(r["model"], r["case"], r["seed"], r["p_accept"])] = r
+    path = rows_file("calibrate")
+    done = {(r["model"], r["case"], r["seed"], r["p_accept"]): r for r in load_rows(path)}
     jobs = [
         (m, c, s, p)
         for s in args.calibration_seeds + args.report_seeds
@@ -158,8 +153,7 @@ def main():
     for n, job in enumerate(jobs):
         if job not in done:
             done[job] = row(args, *job)
-            with path.open("a") as f:
-                f.write(json.dumps(done[job]) + "\n")
+            append_row(path, done[job])
         r = done[job]
         print(
             f"[{n + 1}/{len(jobs)}] {' '.join(map(str, job))}: {r['verdict']} {r['accepted']} "

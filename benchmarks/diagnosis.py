@@ -3,7 +3,7 @@
     python benchmarks/diagnosis.py [--seeds 3] [--time-limit-s 3] [--workers 2] [--effects NAME,...]
                                    [--strengths 0.5,1,1.5] [--hold-friction] [--design none,J7x2]
                                    [--truth-model drake|reference] [--record-after-s 0] [--candidates physical]
-                                   [--out benchmarks/out/diagnosis.jsonl]
+                                   [--out benchmarks/rows/diagnosis.jsonl]
 
 For every effect the replays can see, campaigns of its design (the trials that make it visible: a
 no-failure trial and two joint-7 failures by default, like tests/test_diagnose.py; two circling joint-2
@@ -25,11 +25,12 @@ also makes (potentiometer_offset_j9 hides one).
 """
 
 import argparse
-import json
 import re
 import tempfile
 import time
 from pathlib import Path
+
+from doc_blocks import append_row, load_rows, rows_file  # benchmarks/ is on the path when this runs
 
 from rc1_drake.config import FRICTION_NAMES, START_MODES, TRUTH_MODELS, Z95, Friction, Gait, Stop
 from rc1_drake.diagnose import diagnose
@@ -212,21 +213,18 @@ def main():
         help="the trials' head rates at t = 0: rest (the protocol's convention) or fit (nuisance "
         "coordinates of every fit)",
     )
-    parser.add_argument("--out", type=Path, default=Path("benchmarks/out/diagnosis.jsonl"))
+    parser.add_argument("--out", type=Path, default=rows_file("diagnosis"), help="the rows (a rerun resumes)")
     args = parser.parse_args()
     made = (args.truth_model, args.record_after_s, args.candidates, args.start_rates)
-    args.out.parent.mkdir(parents=True, exist_ok=True)
     done = {}
-    if args.out.exists():
-        for line in args.out.read_text().splitlines():
-            row = json.loads(line)
-            if (
-                row.get("truth_model", "drake"),
-                row.get("record_after_s", 0.0),
-                row.get("candidates", "physical"),
-                row.get("start_rates", "rest"),
-            ) == made:  # a study per truth, candidate set and start
-                done[(row["effect"], row["strength"], row["seed"], row.get("design", DESIGN))] = row
+    for row in load_rows(args.out):
+        if (
+            row.get("truth_model", "drake"),
+            row.get("record_after_s", 0.0),
+            row.get("candidates", "physical"),
+            row.get("start_rates", "rest"),
+        ) == made:  # a study per truth, candidate set and start
+            done[(row["effect"], row["strength"], row["seed"], row.get("design", DESIGN))] = row
     effects = args.effects.split(",")
     unknown = [e for e in effects if e not in REFERENCE]
     if unknown:
@@ -277,8 +275,7 @@ def main():
             *made,
         )
         done[job] = row
-        with args.out.open("a") as f:
-            f.write(json.dumps(row) + "\n")
+        append_row(args.out, row)
         print(
             f"[{n + 1}/{len(jobs)}] {effect or 'no effect'} x{strength:g} seed {seed} ({design}): "
             f"{row['verdict']}, accepted {row['accepted']}, first {row['first']}, {row['wall_s']:.0f} s",

@@ -33,7 +33,7 @@ from pathlib import Path
 
 import numpy as np
 from calibrate import seeds as parse_seeds  # benchmarks/ is on the path when this script runs
-from doc_blocks import REPO_ROOT, append_row, check_block, load_rows, write_block
+from doc_blocks import REPO_ROOT, append_row, check_block, load_rows, rows_file, write_block
 
 from rc1_drake.config import Friction, Stop
 from rc1_drake.diagnose.discover import MIN_FALL, MIN_GAIN, best_gain, discover_campaign, passes_gate
@@ -196,13 +196,15 @@ def main():
         check_block(PAGE, block, writer)
     args.out = args.out or REPO_ROOT / "benchmarks" / "out" / name
     args.out.mkdir(parents=True, exist_ok=True)
-    rows = [r for r in load_rows(name) if "input_noise" in r]  # made before the gate's noise floor: run again
+    rows = [
+        r for r in load_rows(rows_file(name)) if "input_noise" in r
+    ]  # made before the gate's noise floor: run again
     done = {(r["cell"], r["seed"]) for r in rows}
     jobs = [(known[c], s) for s in seed_list for c in labels if (c, s) not in done]
     for n, (cell, seed) in enumerate([] if args.table_only else jobs):
         row = one(cell, seed, args)
         rows.append(row)
-        append_row(name, row)
+        append_row(rows_file(name), row)
         terms = ", ".join(f"{t['key']}={t['value']:.3g}" for t in row["terms"]) or "none"
         cost = f"{row['wall_s'] / 60:.1f} min, {row['simulations']} jobs of ~100 runs"
         print(f"[{n + 1}/{len(jobs)}] {cell.label} seed {seed}: gain {row['gain']:.3g}, terms {terms}, fall "
@@ -210,9 +212,7 @@ def main():
     body, head = table(rows, calibration, [known[c] for c in labels], writer)
     print(head, body, sep="\n")
     if args.markdown and not any(r["seed"] not in calibration for r in rows):
-        raise SystemExit(
-            f"benchmarks/rows/{name}.jsonl: no rows on the reported seeds: the table in {PAGE} is left as it is"
-        )
+        raise SystemExit(f"{rows_file(name)}: no rows on the reported seeds: the table in {PAGE} is left as it is")
     if args.markdown:
         write_block(PAGE, block, writer, head + "\n\n" + body)
 

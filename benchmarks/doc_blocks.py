@@ -40,14 +40,18 @@ def write_block(path: Path, name: str, writer: str, body: str) -> None:
 ROWS = REPO_ROOT / "benchmarks" / "rows"
 
 
-def load_rows(name: str) -> list:
-    """The rows a benchmark has measured so far (none before its first run)."""
-    path = ROWS / f"{name}.jsonl"
+def rows_file(name: str) -> Path:
+    """Where benchmark `name` keeps its rows."""
+    return ROWS / f"{name}.jsonl"
+
+
+def load_rows(path: Path) -> list:
+    """The rows measured so far (none before the first run)."""
     return [json.loads(line) for line in path.read_text().splitlines() if line.strip()] if path.exists() else []
 
 
-def append_row(name: str, row: dict) -> None:
-    """Stream one measured row to the benchmark's record, as soon as it is measured."""
-    ROWS.mkdir(parents=True, exist_ok=True)
-    with (ROWS / f"{name}.jsonl").open("a") as f:
+def append_row(path: Path, row: dict) -> None:
+    """Stream one measured row to the record, as soon as it is measured."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with path.open("a") as f:
         f.write(json.dumps(row) + "\n")

@@ -1,7 +1,7 @@
 """Data this model did not make: compare, identify and diagnose on campaigns made by the independent model.
 
     python benchmarks/foreign.py [--seeds 2] [--diagnose-seeds 10] [--only compare,identify,diagnose]
-                                 [--record-after-s 0,1] [--workers 2] [--out benchmarks/out/foreign.jsonl] [--markdown]
+                                 [--record-after-s 0,1] [--workers 2] [--out benchmarks/rows/foreign.jsonl] [--markdown]
 
 reference.py makes the campaigns: kinematic joints as the paper drives them, the head at rest at its start, its own
 limit model, default sensor noise. Each section puts it beside what the project's own model (synthesize's drake
@@ -30,7 +30,7 @@ from pathlib import Path
 
 import diagnosis
 import numpy as np
-from doc_blocks import REPO_ROOT, check_block, write_block
+from doc_blocks import REPO_ROOT, append_row, check_block, load_rows, rows_file, write_block
 
 from rc1_drake.compare import compare_campaign, simulator_error
 from rc1_drake.config import FRICTION_NAMES, Failure, Friction, Scenario, Start, Stop
@@ -285,7 +285,7 @@ def main():
     parser.add_argument("--only", default=",".join(SECTIONS), help=f"sections, a comma list of {', '.join(SECTIONS)}")
     parser.add_argument("--record-after-s", default="0,1", help="compare's recording starts, s after the robot's")
     parser.add_argument("--workers", type=int, default=2)
-    parser.add_argument("--out", type=Path, default=Path("benchmarks/out/foreign.jsonl"))
+    parser.add_argument("--out", type=Path, default=rows_file("foreign"), help="the rows (a rerun resumes)")
     parser.add_argument("--markdown", action="store_true", help="write the tables into docs/measurements.md")
     args = parser.parse_args()
     args.only = [s.strip() for s in args.only.split(",")]
@@ -300,19 +300,13 @@ def main():
         ) from None
     if args.markdown:
         check_block(FOREIGN_PAGE, FOREIGN_BLOCK, WRITER)
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    done = {}
-    if args.out.exists():
-        for line in args.out.read_text().splitlines():
-            row = json.loads(line)
-            done[json.dumps(row["job"])] = row
+    done = {json.dumps(row["job"]): row for row in load_rows(args.out)}
     todo = jobs(args)
     for n, job in enumerate(todo):
         key = json.dumps(list(job))
         if key not in done:
             done[key] = run(job, args.workers)
-            with args.out.open("a") as f:
-                f.write(json.dumps(done[key]) + "\n")
+            append_row(args.out, done[key])
         print(
             f"[{n + 1}/{len(todo)}] {' '.join(map(str, job))}: {done[key]['wall_s']:.0f} s", file=sys.stderr, flush=True
         )

@@ -38,7 +38,7 @@ from pathlib import Path
 import diagnosis
 import numpy as np
 from calibrate import seeds as parse_seeds
-from doc_blocks import REPO_ROOT, append_row, check_block, load_rows, write_block
+from doc_blocks import REPO_ROOT, append_row, check_block, load_rows, rows_file, write_block
 
 from rc1_drake.config import Friction, Stop
 from rc1_drake.diagnose import diagnose
@@ -320,13 +320,13 @@ def main():
         check_block(PAGE, BLOCK, WRITER)
         check_block(README, SUMMARY, WRITER)
     args.out.mkdir(parents=True, exist_ok=True)
-    rows = [r for r in load_rows("paper_rates") if r["trials_per_case"] == args.trials_per_case]
+    rows = [r for r in load_rows(rows_file("paper_rates")) if r["trials_per_case"] == args.trials_per_case]
     done = {(r["cell"], r["seed"]) for r in rows if r.get("variant", "default") == args.variant}
     jobs = [(c, s) for s in seed_list for c in cells if (c.label, s) not in done]
     for n, (cell, seed) in enumerate([] if args.table_only else jobs):
         row = one(cell, seed, args)
         rows.append(row)
-        append_row("paper_rates", row)
+        append_row(rows_file("paper_rates"), row)
         print(f"[{n + 1}/{len(jobs)}] {cell.label} seed {seed}: {row['verdict']}, accepted {row['accepted']} -> "
               f"{row['outcome']} ({row['wall_s'] / 60:.1f} min, {row['simulations']} replays)", flush=True)  # fmt: skip
     if args.variant != "default":

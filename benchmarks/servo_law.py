@@ -15,10 +15,11 @@ pair's scores and how far apart their head paths are (at the Drake run's log tim
 
 import argparse
 import dataclasses
-import json
 import time
+from pathlib import Path
 
 import numpy as np
+from doc_blocks import append_row  # benchmarks/ is on the path when this runs
 
 from rc1_drake.config import Friction, Servo
 from rc1_drake.effects import commanded_gait
@@ -172,8 +173,7 @@ def main():
         r = measure(name, trials=args.trials)
         print(format_row(r) + f"  ({time.perf_counter() - started:.0f} s)", flush=True)
         if args.jsonl:
-            with open(args.jsonl, "a") as f:
-                f.write(json.dumps(r) + "\n")
+            append_row(Path(args.jsonl), r)
 
 
 if __name__ == "__main__":
