@@ -190,35 +190,55 @@ def spd_solve(matrix, rhs):
 
 
 @jit
-def lu_solve(matrix, rhs):
-    """matrix^-1 rhs by LU with partial pivoting, by hand as cholesky (16 x 16: LAPACK's call costs more); NaN where
-    the matrix is not finite or singular (a run that blew up: the engine then stops it with an error, where LAPACK's
-    exception from compiled code can corrupt the heap)."""
+def lu_factor(matrix):
+    """(the LU factors of `matrix` in one array, the row order) by partial pivoting, by hand as cholesky (16 x 16:
+    LAPACK's call costs more); an empty array where the matrix is not finite or singular (a run that blew up: the
+    engine then stops it with an error, where LAPACK's exception from compiled code can corrupt the heap)."""
     n = matrix.shape[0]
+    order = np.arange(n)
     if not np.isfinite(matrix).all():
-        return np.full(n, np.nan)
-    a, out = matrix.copy(), rhs.astype(np.float64)
+        return np.zeros((0, 0)), order
+    a = matrix.copy()
     for k in range(n):
         pivot = k
         for i in range(k + 1, n):
             if abs(a[i, k]) > abs(a[pivot, k]):
                 pivot = i
         if a[pivot, k] == 0.0:
-            return np.full(n, np.nan)
+            return np.zeros((0, 0)), order
         if pivot != k:
             for j in range(n):
                 a[k, j], a[pivot, j] = a[pivot, j], a[k, j]
-            out[k], out[pivot] = out[pivot], out[k]
+            order[k], order[pivot] = order[pivot], order[k]
         for i in range(k + 1, n):
-            factor = a[i, k] / a[k, k]
+            a[i, k] /= a[k, k]
             for j in range(k + 1, n):
-                a[i, j] -= factor * a[k, j]
-            out[i] -= factor * out[k]
+                a[i, j] -= a[i, k] * a[k, j]
+    return a, order
+
+
+@jit
+def lu_factor_solve(factors, order, rhs):
+    """matrix^-1 rhs from lu_factor's (factors, order); NaN where it found none."""
+    n = rhs.shape[0]
+    if factors.shape[0] == 0:
+        return np.full(n, np.nan)
+    out = rhs[order].astype(np.float64)
+    for i in range(n):
+        for k in range(i):
+            out[i] -= factors[i, k] * out[k]
     for i in range(n - 1, -1, -1):
-        for j in range(i + 1, n):
-            out[i] -= a[i, j] * out[j]
-        out[i] /= a[i, i]
+        for k in range(i + 1, n):
+            out[i] -= factors[i, k] * out[k]
+        out[i] /= factors[i, i]
     return out
+
+
+@jit
+def lu_solve(matrix, rhs):
+    """matrix^-1 rhs by LU (lu_factor); NaN where the matrix is not finite or singular."""
+    factors, order = lu_factor(matrix)
+    return lu_factor_solve(factors, order, rhs)
 
 
 @jit

@@ -150,3 +150,22 @@ def test_implicit_step_converges_with_stiff_servos_at_their_clamp():
         assert np.allclose(torque, np.clip(offset - rate * v_next, -power, power), rtol=0, atol=1e-8), seed
         f_long, f_lat = wheel_friction_forces(jl @ v_next, jt @ v_next, normal_force=np.full(w, N), eps=1e-3, **PAPER)
         assert np.allclose(tau, jl.T @ f_long + jt.T @ f_lat, rtol=0, atol=1e-8), seed
+
+
+def test_the_steps_hand_lu_solves_as_lapack_does_and_gives_nan_where_there_is_no_solution():
+    """The unsymmetric step's solve (a discrepancy term's side force): partial pivoting by hand, against LAPACK on a
+    matrix whose first pivot is 0 (it must pivot), and NaN, not an exception, for a singular or non-finite one."""
+    from rc1_drake.friction import lu_factor, lu_factor_solve, lu_solve
+
+    rng = np.random.default_rng(3)
+    matrix = rng.normal(size=(16, 16))
+    matrix[0, 0] = 0.0
+    rhs = rng.normal(size=16)
+    np.testing.assert_allclose(lu_solve(matrix, rhs), np.linalg.solve(matrix, rhs), rtol=1e-10, atol=1e-12)
+    factors, order = lu_factor(matrix)
+    other = rng.normal(size=16)
+    np.testing.assert_allclose(lu_factor_solve(factors, order, other), np.linalg.solve(matrix, other), rtol=1e-10,
+                               atol=1e-12)  # fmt: skip
+    singular = np.array([[1.0, 2.0], [2.0, 4.0]])
+    assert np.isnan(lu_solve(singular, np.ones(2))).all()
+    assert np.isnan(lu_solve(np.full((2, 2), np.inf), np.ones(2))).all()

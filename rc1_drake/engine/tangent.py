@@ -36,6 +36,8 @@ from ..friction import (
     cholesky_solve,
     coulomb_law,
     friction_problem,
+    lu_factor,
+    lu_factor_solve,
     spd_solve,
 )
 from ..kinematics import jit
@@ -325,16 +327,10 @@ def friction_tangent(
         for d in range(out.shape[0]):
             out[d] = cholesky_solve(low, out[d])
         return out
-    return _lu_solve_rows(K, out)
-
-
-@jit
-def _lu_solve_rows(matrix, rows):
-    """matrix^-1 applied to each row of `rows` (P, n) in one LAPACK call (one a direction costs more than the rest of
-    the direction's tangent); NaN where the matrix is not finite, as friction.lu_solve."""
-    if not np.isfinite(matrix).all():
-        return np.full(rows.shape, np.nan)
-    return np.ascontiguousarray(np.linalg.solve(matrix, np.ascontiguousarray(rows.T)).T)
+    factors, order = lu_factor(K)  # once a step, for every direction
+    for d in range(out.shape[0]):
+        out[d] = lu_factor_solve(factors, order, out[d])
+    return out
 
 
 @jit
@@ -352,12 +348,10 @@ def _discrepancy_terms(local, v_plus, x, theta, free, eps):
             u[s] += local[s, a] * v_plus[a]
         force[s], rate[s] = site_force(u[s].real, u[s].imag, theta[g * NSK : (g + 1) * NSK], eps)
         shapes[s] = site_shapes(u[s].real, u[s].imag, eps)
-    joints = np.zeros((free.shape[0], NJK))
+    joints = np.zeros((free.shape[0], NJK))  # bias and spring at the step's start, drag and dry at v+
     for j in range(free.shape[0]):
         if free[j]:
-            joints[j] = joint_shapes(
-                x[3 + j], v_plus[3 + j], JOINT_EPS_RAD_S
-            )  # bias, spring at the start; drag, dry at v+
+            joints[j] = joint_shapes(x[3 + j], v_plus[3 + j], JOINT_EPS_RAD_S)
     return u, force, rate, shapes, joints
 
 
