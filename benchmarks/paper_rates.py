@@ -21,12 +21,13 @@ data from another model), friction free.
 Scored: right (effect_found with exactly the hidden library effects; no_missing_effect with nothing hidden; nothing
 accepted for an effect outside the candidates), a wrong effect accepted, ambiguous, unexplained, and the 95% intervals'
 coverage of the truth where a hidden effect was accepted. The thresholds (diagnose.THRESHOLDS) were chosen on other
-seeds of another design (benchmarks/calibrate.py, seeds 0-5): the seeds here, from 100, chose nothing. Rows stream to
-benchmarks/rows/paper_rates.jsonl (kept in the repository; campaigns and checkpoints go to OUT), seed by seed (every
-cell of a seed before the next seed): a rerun resumes, from a fresh clone too, and the table covers whatever seeds are
-complete or partial. --markdown writes it into docs/diagnosis.md and its summary line into the README. `--variant`
-diagnoses the same campaigns with another configuration (VARIANTS) and prints it against the default campaign by
-campaign: same outcome, same accepted effects, replays and minutes."""
+seeds of another design (benchmarks/calibrate.py, seeds 0-5); seeds 100-101 here (CHOSE) chose a decision rule (the
+look-alikes' check, docs/findings.md), so their table is printed apart and the reported one covers the others.
+Rows stream to benchmarks/rows/paper_rates.jsonl (kept in the repository; campaigns and checkpoints go to OUT), seed
+by seed (every cell of a seed before the next seed): a rerun resumes, from a fresh clone too, and the table covers
+whatever seeds are complete or partial. --markdown writes it into docs/diagnosis.md and its summary line into the
+README. `--variant` diagnoses the same campaigns with another configuration (VARIANTS) and prints it against the
+default campaign by campaign: same outcome, same accepted effects, replays and minutes."""
 
 import argparse
 import collections
@@ -49,6 +50,7 @@ from rc1_drake.synthesize import PAPER_DESIGN, Case, Noise, Variation, synthesiz
 PAGE, BLOCK, WRITER = REPO_ROOT / "docs" / "diagnosis.md", "paper-rates-table", "benchmarks/paper_rates.py --markdown"
 README, SUMMARY = REPO_ROOT / "README.md", "paper-rates-summary"
 J7_BIAS_DEG = next(c.bias_deg for c in PAPER_DESIGN if c.bias_deg)
+CHOSE = (100, 101)  # the seeds whose campaigns chose a decision rule: reported apart from the others
 # Other configurations of the diagnosis, judged against the default on the same campaigns (issue 42 item 2).
 VARIANTS = {
     "default": {},
@@ -275,6 +277,20 @@ def targets(rows: list, cells: list) -> str:
     return "\n".join(lines)
 
 
+def section(rows: list, cells: list, trials_per_case: int, which: str) -> tuple:
+    """(the table of `rows` with its heading, summary and targets, as markdown; the summary line)."""
+    if not rows:
+        return f"{which[0].upper()}{which[1:]}: no campaign diagnosed yet.", "no campaign diagnosed yet"
+    body, summary = table(rows, cells)
+    used = sorted({r["seed"] for r in rows})
+    head = (
+        f"Measured by `python benchmarks/paper_rates.py --markdown` ({which}; last run {time.strftime('%Y-%m-%d')}; "
+        f"{trials_per_case} trials of each paper case per campaign, seeds {used[0] if used else '-'}-"
+        f"{used[-1] if used else '-'}, {len(rows)} campaigns):"
+    )
+    return "\n\n".join([head, body, summary, targets(rows, cells)]), summary
+
+
 def paired(rows: list, variant: str) -> str:
     """The variant against the default on the campaigns both diagnosed."""
     default = {(r["cell"], r["seed"]): r for r in rows if r.get("variant", "default") == "default"}
@@ -332,27 +348,26 @@ def main():
     if args.variant != "default":
         print(paired(rows, args.variant))
     rows = [r for r in rows if r.get("variant", "default") == "default"]
-    body, summary = table(rows, cells)
-    used = sorted({r["seed"] for r in rows})
-    head = (
-        f"Measured by `python benchmarks/paper_rates.py --markdown` (last run {time.strftime('%Y-%m-%d')}; "
-        f"{args.trials_per_case} trials of each paper case per campaign, seeds {used[0] if used else '-'}-"
-        f"{used[-1] if used else '-'}, {len(rows)} campaigns):"
-    )
-    goals = targets(rows, cells)
-    print(head, body, summary, goals, sep="\n")
+    reported, chose = [r for r in rows if r["seed"] not in CHOSE], [r for r in rows if r["seed"] in CHOSE]
+    text, summary = section(reported, cells, args.trials_per_case, "reported seeds")
+    apart, _ = section(chose, cells, args.trials_per_case, "the seeds that chose the look-alikes' check, apart")
+    print(text, apart, sep="\n\n")
     if args.markdown:
-        write_block(PAGE, BLOCK, WRITER, head + "\n\n" + body + "\n\n" + goals)
+        write_block(PAGE, BLOCK, WRITER, text + "\n\n" + apart)
         kinds = {c.label: hidden_kind(c) for c in CELLS}
+        basis = reported or chose  # the verdicts' rates from the reported seeds once there are any
+        used = sorted({r["seed"] for r in basis})
+        seeds = f"seeds {used[0]}-{used[-1]}" + ("" if reported else ", the seeds that chose a rule") if used else ""
         rates = {
             "measured": time.strftime("%Y-%m-%d"),
-            "design": f"{args.trials_per_case} trials each of none, J7, J13, J7+bias, 10 s; {len(rows)} campaigns",
+            "design": f"{args.trials_per_case} trials each of none, J7, J13, J7+bias, 10 s; {len(basis)} campaigns, "
+            + (seeds or "none yet"),
             "command": "python benchmarks/paper_rates.py --markdown",
-            "verdicts": verdict_rates([{**r, "hidden": kinds[r["cell"]]} for r in rows if r["cell"] in kinds]),
+            "verdicts": verdict_rates([{**r, "hidden": kinds[r["cell"]]} for r in basis if r["cell"] in kinds]),
         }
         RATES_FILE.write_text(json.dumps(rates, indent=1) + "\n")
-        seeds = f"seeds {used[0]}-{used[-1]}" if used else "no seed yet"
-        line = f"On the paper's design (`benchmarks/paper_rates.py`, {seeds}): {summary}."
+        where = f"`benchmarks/paper_rates.py`, {seeds or 'no seed yet'}"
+        line = f"On the paper's design ({where}): {table(basis, cells)[1]}."
         write_block(README, SUMMARY, WRITER, line)
 
 

@@ -314,6 +314,30 @@ def test_when_two_candidates_tie_a_third_checked_one_is_reported_as_clearly_behi
     assert candidates[2].status == "held-out gain, clearly less than the best one's"
 
 
+@pytest.mark.parametrize(
+    "loose_after, decision",
+    [
+        (35.0, (None, ["a", "b"], None)),  # a loose look-alike within 1.5x of the best significant one: a tie
+        (20.0, (None, ["a", "b"], None)),  # better than it: a tie too, never accepted in its place
+        (80.0, ("a", [], None)),  # clearly behind: the significant one is accepted
+    ],
+)
+def test_a_look_alike_that_is_not_significant_can_tie_but_never_be_accepted(loose_after, decision):
+    significant, loose = _checked("a", 30.0), _checked("b", loose_after)
+    loose.wald_p, loose.status = 0.01, "not significant"
+    assert decide([significant, loose]) == decision
+    assert not loose.accepted
+    if decision[0] == "a":
+        assert loose.status == "not significant"
+
+
+def test_without_a_significant_candidate_a_helping_look_alike_decides_nothing():
+    loose = _checked("b", 20.0)
+    loose.wald_p = 0.01
+    assert decide([loose]) == (None, [], None)
+    assert not loose.accepted
+
+
 def test_a_partial_explanation_is_reported_and_never_called_found_or_nothing():
     quiet, loud = Misfit(p=0.5, outliers={}), Misfit(p=1e-6, outliers={})
     partial = _checked("head_drag", 60.0)

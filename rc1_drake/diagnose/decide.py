@@ -122,7 +122,8 @@ def rank(
 def decide(results: list[CandidateResult], thresholds: Thresholds = THRESHOLDS) -> tuple:
     """From the candidates checked by simulation (`simulated` set): (the accepted one's name or None, the
     names that explain the held-out trials alike, the name of one that explains only part of it); sets
-    every checked candidate's status and the accepted one's flag."""
+    every checked candidate's status and the accepted one's flag. Only a significant candidate is accepted; a
+    look-alike checked though not significant (its parameters loose: a slope's two) is a rival that can tie it."""
     helping = [
         c for c in results if c.simulated and c.simulated["held_out_reduction"] >= thresholds.min_held_out_reduction
     ]
@@ -130,11 +131,14 @@ def decide(results: list[CandidateResult], thresholds: Thresholds = THRESHOLDS) 
     for c in results:
         if c.simulated and c not in helping:
             c.status = "no held-out gain when simulated"
-    if not helping:
+    significant = [c for c in helping if c.wald_p < thresholds.p_accept]
+    if not significant:
         return None, [], None
-    best, others = helping[0], helping[1:]
+    best = significant[0]
+    others = [c for c in helping if c is not best]
     for c in others:
-        c.status = "held-out gain, clearly less than the best one's"
+        if c.wald_p < thresholds.p_accept:
+            c.status = "held-out gain, clearly less than the best one's"
     best_after = best.simulated["held_out_sum_of_squares_after"]
     rivals = [
         c for c in others if c.simulated["held_out_sum_of_squares_after"] < thresholds.ambiguous_ratio * best_after

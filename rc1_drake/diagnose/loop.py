@@ -345,8 +345,15 @@ class _Search:
             again.visibility, again.indistinguishable_from = c.visibility, c.indistinguishable_from
             refined[c.name] = (again, at)
         results = sorted([refined[c.name][0] if c.name in refined else c for c in results], key=lambda c: -c.score)
+        to_check = [c for c in results if c.status == "candidate" and c.name in refined][:CHECKED_CANDIDATES]
+        if to_check:  # and the refined ones that help but are not significant: look-alikes, rivals only (decide)
+            to_check += [
+                c
+                for c in results
+                if c.name in refined and c.status == "not significant" and c.score >= thresholds.min_held_out_reduction
+            ]
         checked = {}
-        for c in [c for c in results if c.status == "candidate" and c.name in refined][:CHECKED_CANDIDATES]:
+        for c in to_check:
             at = refined[c.name][1]
             cand_fit = fit(at, names + owned(at, c.name))
             check = held_out_by_simulation(at, cand_fit, evaluator, f"{self.label()} + {c.name}")
