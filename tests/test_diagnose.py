@@ -24,7 +24,7 @@ from rc1_drake.config import FRICTION_NAMES, Z95, Friction, Gait, Stop
 from rc1_drake.diagnose import THRESHOLDS, diagnose
 from rc1_drake.diagnose import verdict as verdicts
 from rc1_drake.diagnose.coordinates import START, effect_coordinates, friction_coordinates, model_at
-from rc1_drake.diagnose.decide import at_end_of_range, decide
+from rc1_drake.diagnose.decide import decide
 from rc1_drake.diagnose.fit import bounded_least_squares, fit
 from rc1_drake.diagnose.linearize import (
     PAIRED_DRAWS,
@@ -336,23 +336,6 @@ def test_without_a_significant_candidate_a_helping_look_alike_decides_nothing():
     loose.wald_p = 0.01
     assert decide([loose]) == (None, [], None)
     assert not loose.accepted
-
-
-def test_an_effect_fitted_at_the_end_of_its_range_is_reported_as_partial_not_accepted():
-    """A candidate that explains the held-out trials only where its range ends (a slope at 5 deg standing in for a
-    Stribeck rise) is named as part of the story, never accepted: its estimate is a bound, not a value."""
-    slope = _checked("ground_slope", 30.0)
-    slope.at_range_end = ["ground_slope_x_deg"]
-    assert decide([slope]) == (None, [], "ground_slope")
-    assert not slope.accepted and "end of its range" in slope.status
-    verdict, text = verdicts.verdict([], Misfit(p=1e-6, outliers={}), [_round([slope], partial="ground_slope")])
-    assert verdict == verdicts.Verdict.UNEXPLAINED and "only at the end of its range (ground_slope_x_deg)" in text
-
-
-@pytest.mark.parametrize("value, at_end", [(5.0, True), (-5.0, True), (4.99, False), (0.0, False)])
-def test_the_end_of_a_coordinates_range_is_its_bounds_but_not_its_nested_zero(value, at_end):
-    assert at_end_of_range(Parameter("ground_slope_x_deg", -5.0, 5.0), value) is at_end
-    assert not at_end_of_range(Parameter("payload_kg", 0.0, 2.0), 0.0)  # a bound at the nested value: not an end
 
 
 def test_a_partial_explanation_is_reported_and_never_called_found_or_nothing():

@@ -107,7 +107,6 @@ def rank(
                 status=status,
                 detectable_strength=detectable,
                 visibility=visibility(lin, name),
-                at_range_end=[c.name for c in coords if at_end_of_range(c, values[c.name])],
             )
         )
     for c in results:
@@ -150,11 +149,6 @@ def decide(results: list[CandidateResult], thresholds: Thresholds = THRESHOLDS) 
         for c in [best, *rivals]:
             c.status = "explains it, as well as " + ", ".join(n for n in ambiguous if n != c.name)
         return None, ambiguous, None
-    if best.at_range_end:
-        # Fitted where the library's range ends (not at its nested value): the effect stands in for something the
-        # range does not hold (seen: a Stribeck rise taken for a 5 deg slope); its interval is one-sided, no estimate.
-        best.status = f"explains it only at the end of its range ({', '.join(best.at_range_end)}): not accepted"
-        return None, [], best.name
     if best.simulated["held_out_reduction"] < thresholds.accept_held_out_reduction:
         # Significant and confirmed, but too weak a gain to name the effect: wrong effects accepted in a true
         # one's place gained 17-49% (Thresholds.accept_held_out_reduction).
@@ -165,11 +159,6 @@ def decide(results: list[CandidateResult], thresholds: Thresholds = THRESHOLDS) 
         return None, [], best.name
     best.status, best.accepted = "accepted", True
     return best.name, [], None
-
-
-def at_end_of_range(c, value: float) -> bool:
-    """Whether `value` sits at an end of coordinate `c`'s range other than 0, the nested value of every effect."""
-    return any(end != 0.0 and abs(value - end) <= 1e-9 * max(1.0, abs(end)) for end in (c.lower, c.upper))
 
 
 def score(lin: Linearization, label: str, effects, corrected, eq6, yaw_fit) -> HeldOutScore:

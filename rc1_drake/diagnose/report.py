@@ -28,7 +28,6 @@ class CandidateResult:
     accepted: bool = False
     detectable_strength: dict[str, float] = dataclasses.field(default_factory=dict)  # 3 standard errors
     indistinguishable_from: list[str] = dataclasses.field(default_factory=list)
-    at_range_end: list[str] = dataclasses.field(default_factory=list)  # coordinates fitted at an end of their range
     visibility: dict[str, dict[str, float]] = dataclasses.field(default_factory=dict)  # case -> channel -> per unit
     simulated: dict | None = None  # the check by simulation, when it was made
     experiment: str | None = None  # the kind of trial that would see it / tell it apart

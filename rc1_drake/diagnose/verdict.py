@@ -51,12 +51,9 @@ def verdict(accepted, left, rounds) -> tuple:
     part = ""
     if partial:
         best = next(c for c in rounds[-1].candidates if c.name == partial)
-        share = 100 * best.simulated["held_out_reduction"]
-        gain = f"{partial} is significant and removes {share:.0f}% of the held-out error"
         part = (
-            f"; {gain} only at the end of its range ({', '.join(best.at_range_end)}): it stands in for what is missing"
-            if best.at_range_end
-            else f"; {gain}, too little to name it: these trials cannot identify what is missing"
+            f"; {partial} is significant and removes {100 * best.simulated['held_out_reduction']:.0f}% of the "
+            f"held-out error, too little to name it: these trials cannot identify what is missing"
         )
     helped = f"; {', '.join(accepted)} helped but did not explain it (partial)" if accepted else ""
     return Verdict.UNEXPLAINED, (
