@@ -27,7 +27,9 @@ Rows stream to benchmarks/rows/paper_rates.jsonl (kept in the repository; campai
 by seed (every cell of a seed before the next seed): a rerun resumes, from a fresh clone too, and the table covers
 whatever seeds are complete or partial. --markdown writes it into docs/diagnosis.md and its summary line into the
 README. `--variant` diagnoses the same campaigns with another configuration (VARIANTS) and prints it against the
-default campaign by campaign: same outcome, same accepted effects, replays and minutes."""
+default campaign by campaign: same outcome, same accepted effects, replays and minutes. A campaign's checkpoint is
+shared by every variant, and its code version leaves out the modules that only decide (sysid.evaluate.DECISION_ONLY):
+a variant, or a rule changed there, replays only what the default did not (minutes a campaign, not hours)."""
 
 import argparse
 import collections
@@ -174,7 +176,7 @@ def one(cell: Cell, seed: int, args) -> dict:
         workers=args.workers,
         probe_study=False,
         start_rates="fit",
-        checkpoint=args.out / "checkpoints" / f"{folder.name}-{args.variant}",
+        checkpoint=args.out / "checkpoints" / folder.name,  # one for every variant: a replay's key is its job
         **VARIANTS[args.variant],
     )
     return {

@@ -722,3 +722,44 @@ def test_an_interrupted_diagnosis_resumes_from_its_checkpoint_with_the_same_answ
     assert 0 < again.resumed < again.simulations == whole.simulations  # three batches came from the checkpoint
     assert (again.verdict, again.effects, again.friction) == (whole.verdict, whole.effects, whole.friction)
     assert [c.coordinates for c in again.candidates] == [c.coordinates for c in whole.candidates]
+
+
+def test_no_checkpointed_job_imports_a_decision_only_module():
+    """The checkpoints' code version leaves the decision-only modules out (sysid.evaluate.DECISION_ONLY), so a rule
+    changed there reuses the replays on disk: that is right only if no job function's module needs them, directly or
+    through the modules it imports (package __init__ files aside: a job calls functions, not the package)."""
+    import ast
+
+    from rc1_drake.sysid.evaluate import DECISION_ONLY
+
+    root = REPO / "rc1_drake"
+    jobs = [
+        "diagnose/replays.py",
+        "diagnose/discover.py",
+        "sysid/input_noise.py",
+        "sysid/residual.py",
+        "identify/avs.py",
+    ]
+
+    def imported(relative: str) -> set:
+        here = (root / relative).parent
+        found = set()
+        for node in ast.walk(ast.parse((root / relative).read_text())):
+            if isinstance(node, ast.ImportFrom) and node.level:
+                base = here
+                for _ in range(node.level - 1):
+                    base = base.parent
+                target = base.joinpath(*node.module.split(".")) if node.module else base
+                for name in [target.with_suffix(".py"), *(target / f"{a.name}.py" for a in node.names)]:
+                    if name.is_file():
+                        found.add(name.relative_to(root).as_posix())
+        return found
+
+    seen, todo = set(), list(jobs)
+    while todo:
+        module = todo.pop()
+        if module not in seen:
+            seen.add(module)
+            todo += sorted(imported(module) - seen)
+    assert {"diagnose/linearize.py", "sysid/evaluate.py", "replay.py"} <= seen  # the walk follows imports
+    assert not seen & set(DECISION_ONLY), sorted(seen & set(DECISION_ONLY))

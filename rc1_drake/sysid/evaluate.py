@@ -38,11 +38,21 @@ def replay(trial, friction: Friction, effects=None):
     return replayer(trial).run(friction, effects)
 
 
+# The diagnosis's modules that decide from results and compute none of a checkpointed job's (no job function imports
+# them: tests/test_diagnose.py checks it): a rule changed there reuses the replays on disk (paper_rates.py --variant).
+DECISION_ONLY = tuple(
+    f"diagnose/{name}.py" for name in ("decide", "fit", "loop", "report", "significance", "thresholds", "verdict")
+)
+
+
 def code_version() -> str:
-    """A hash of the package's source files: results computed by other code are never taken from a checkpoint."""
+    """A hash of the package's source files but DECISION_ONLY: results computed by other code are never taken from a
+    checkpoint."""
     digest = hashlib.sha256()
-    for path in sorted(Path(__file__).resolve().parents[1].rglob("*.py")):
-        digest.update(path.read_bytes())
+    root = Path(__file__).resolve().parents[1]
+    for path in sorted(root.rglob("*.py")):
+        if path.relative_to(root).as_posix() not in DECISION_ONLY:
+            digest.update(path.read_bytes())
     return digest.hexdigest()[:16]
 
 
