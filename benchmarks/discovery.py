@@ -196,9 +196,8 @@ def main():
         check_block(PAGE, block, writer)
     args.out = args.out or REPO_ROOT / "benchmarks" / "out" / name
     args.out.mkdir(parents=True, exist_ok=True)
-    rows = [
-        r for r in load_rows(rows_file(name)) if "input_noise" in r
-    ]  # made before the gate's noise floor: run again
+    # Rows without the gate's noise floor were made before it: run again.
+    rows = [r for r in load_rows(rows_file(name)) if "input_noise" in r]
     done = {(r["cell"], r["seed"]) for r in rows}
     jobs = [(known[c], s) for s in seed_list for c in labels if (c, s) not in done]
     for n, (cell, seed) in enumerate([] if args.table_only else jobs):

@@ -287,8 +287,7 @@ def section(rows: list, cells: list, trials_per_case: int, which: str) -> tuple:
     used = sorted({r["seed"] for r in rows})
     head = (
         f"Measured by `python benchmarks/paper_rates.py --markdown` ({which}; last run {time.strftime('%Y-%m-%d')}; "
-        f"{trials_per_case} trials of each paper case per campaign, seeds {used[0] if used else '-'}-"
-        f"{used[-1] if used else '-'}, {len(rows)} campaigns):"
+        f"{trials_per_case} trials of each paper case per campaign, seeds {used[0]}-{used[-1]}, {len(rows)} campaigns):"
     )
     return "\n\n".join([head, body, summary, targets(rows, cells)]), summary
 
@@ -352,7 +351,9 @@ def main():
     rows = [r for r in rows if r.get("variant", "default") == "default"]
     reported, chose = [r for r in rows if r["seed"] not in CHOSE], [r for r in rows if r["seed"] in CHOSE]
     text, summary = section(reported, cells, args.trials_per_case, "reported seeds")
-    apart, _ = section(chose, cells, args.trials_per_case, "the seeds that chose the look-alikes' check, apart")
+    apart, chose_summary = section(
+        chose, cells, args.trials_per_case, "the seeds that chose the look-alikes' check, apart"
+    )
     print(text, apart, sep="\n\n")
     if args.markdown:
         write_block(PAGE, BLOCK, WRITER, text + "\n\n" + apart)
@@ -369,7 +370,7 @@ def main():
         }
         RATES_FILE.write_text(json.dumps(rates, indent=1) + "\n")
         where = f"`benchmarks/paper_rates.py`, {seeds or 'no seed yet'}"
-        line = f"On the paper's design ({where}): {table(basis, cells)[1]}."
+        line = f"On the paper's design ({where}): {summary if reported else chose_summary}."
         write_block(README, SUMMARY, WRITER, line)
 
 

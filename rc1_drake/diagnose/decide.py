@@ -137,7 +137,7 @@ def decide(results: list[CandidateResult], thresholds: Thresholds = THRESHOLDS) 
     best = significant[0]
     others = [c for c in helping if c is not best]
     for c in others:
-        if c.wald_p < thresholds.p_accept:
+        if c in significant:  # a look-alike keeps its "not significant"
             c.status = "held-out gain, clearly less than the best one's"
     best_after = best.simulated["held_out_sum_of_squares_after"]
     rivals = [
