@@ -227,7 +227,7 @@ def table(rows: list, cells: list) -> tuple:
         minutes = float(np.median([r["wall_s"] for r in mine])) / 60  # a campaign timed across a pause reads long
         left = collections.Counter(t.rsplit("_", 1)[0] for r in mine for t in r.get("unexplained_trials", []))
         left_text = ", ".join(f"{case} {k}" for case, k in left.most_common(3)) or "-"
-        taken = collections.Counter(e for r in mine for e in look_alikes(r, cell))
+        taken = collections.Counter(e for r in mine for e in sorted(look_alikes(r, cell)))  # ties: by name, every run
         taken_text = ", ".join(f"{e} {k}" for e, k in taken.most_common(2)) or "-"
         lines.append(
             f"| {cell.label} | {n} | {count['right']} | {count['wrong']} | {count['ambiguous']} | "
