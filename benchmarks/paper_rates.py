@@ -292,6 +292,17 @@ def section(rows: list, cells: list, trials_per_case: int, which: str) -> tuple:
     return "\n\n".join([head, body, summary, targets(rows, cells)]), summary
 
 
+def complete_seeds(rows: list, cells: list) -> tuple:
+    """(the rows of the seeds whose every cell is diagnosed; a note naming the seeds still in progress)."""
+    labels = {c.label for c in cells}
+    seen = {}
+    for r in rows:
+        seen.setdefault(r["seed"], set()).add(r["cell"])
+    pending = sorted(s for s, got in seen.items() if not labels <= got)
+    note = ", ".join(f"seed {s} ({len(seen[s] & labels)} of {len(labels)} cells)" for s in pending)
+    return [r for r in rows if r["seed"] not in pending], (f"Not yet counted, in progress: {note}." if note else "")
+
+
 def paired(rows: list, variant: str) -> str:
     """The variant against the default on the campaigns both diagnosed."""
     default = {(r["cell"], r["seed"]): r for r in rows if r.get("variant", "default") == "default"}
@@ -349,8 +360,10 @@ def main():
     if args.variant != "default":
         print(paired(rows, args.variant))
     rows = [r for r in rows if r.get("variant", "default") == "default"]
-    reported, chose = [r for r in rows if r["seed"] not in CHOSE], [r for r in rows if r["seed"] in CHOSE]
+    chose = [r for r in rows if r["seed"] in CHOSE]
+    reported, pending = complete_seeds([r for r in rows if r["seed"] not in CHOSE], cells)
     text, summary = section(reported, cells, args.trials_per_case, "reported seeds")
+    text += f"\n\n{pending}" if pending else ""
     apart, chose_summary = section(
         chose, cells, args.trials_per_case, "the seeds that chose the look-alikes' check, apart"
     )
@@ -358,7 +371,7 @@ def main():
     if args.markdown:
         write_block(PAGE, BLOCK, WRITER, text + "\n\n" + apart)
         kinds = {c.label: hidden_kind(c) for c in CELLS}
-        basis = reported or chose  # the verdicts' rates from the reported seeds once there are any
+        basis = reported or chose  # the verdicts' rates from the reported seeds once one is complete
         used = sorted({r["seed"] for r in basis})
         seeds = f"seeds {used[0]}-{used[-1]}" + ("" if reported else ", the seeds that chose a rule") if used else ""
         rates = {

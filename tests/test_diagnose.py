@@ -12,6 +12,7 @@ without a hidden effect gets nothing accepted; an effect outside the library get
 answer. (All effects over many seeds and strengths: benchmarks/diagnosis.py.)"""
 
 import dataclasses
+import importlib
 import math
 import subprocess
 import sys
@@ -763,3 +764,15 @@ def test_no_checkpointed_job_imports_a_decision_only_module():
             todo += sorted(imported(module) - seen)
     assert {"diagnose/linearize.py", "sysid/evaluate.py", "replay.py"} <= seen  # the walk follows imports
     assert not seen & set(DECISION_ONLY), sorted(seen & set(DECISION_ONLY))
+
+
+def test_the_paper_rates_table_counts_a_seed_only_once_every_cell_is_diagnosed(monkeypatch):
+    """A seed part-way through the grid would weigh the cells it reached: its rows wait, and the table names it."""
+    monkeypatch.syspath_prepend(str(REPO / "benchmarks"))
+    paper_rates = importlib.import_module("paper_rates")
+    cells = paper_rates.CELLS[:2]
+    rows = [{"cell": c.label, "seed": 102} for c in cells] + [{"cell": cells[0].label, "seed": 103}]
+    counted, note = paper_rates.complete_seeds(rows, cells)
+    assert counted == rows[:2]
+    assert note == "Not yet counted, in progress: seed 103 (1 of 2 cells)."
+    assert paper_rates.complete_seeds(rows[:2], cells) == (rows[:2], "")
