@@ -8,10 +8,9 @@ Every campaign (--design short): two no-failure and two joint-7 trials of 2 s, w
 and start spread, made by this model or by reference.py (another model: kinematic joints, its own limits, the forces
 written anew: reference.HiddenForces). Hidden, by both: nothing; a constant torque in the failed joint; a sideways
 force at the head proportional to its rolling speed; the rear wheels (modules 11-14) with half the lateral viscous
-friction; a tether dragging the tail (a Coulomb force at its end: the `study` effect, the term library's isotropic dry
-force at the tail); a wheel toe (a library effect the model lacks: its force pattern must come back). reference.py
-also hides a floor seam, a torque twisting the head as it crosses a fixed x: a shape no term has, so any term reported
-for it is wrong.
+friction; a tether dragging the tail (a Coulomb force at its end: the `study` effect, a shape the term library has);
+a wheel toe (a library effect the model lacks: its force pattern must come back). reference.py also hides a floor
+seam, a torque twisting the head as it crosses a fixed x: a shape no term has, so any term reported for it is wrong.
 
 Discovery (diagnose/discover.py) runs from the paper's model with the truth's friction and its shipped gate: every
 campaign's best sparse model is recorded with its held-out gain, and where it passes the gate, its terms refined and
@@ -71,7 +70,7 @@ CELLS = [
          {"discrepancy_rear_drag_lat_N_s_per_m": -0.5 * C_LAT},
          (("discrepancy_rear_drag_lat_N_s_per_m", -1), ("discrepancy_rear_dry_lat_N", -1))),
     Cell("tail tether 1 N", "drake", {"tail_tether_N": 1.0},
-         tuple((f"discrepancy_tail_{k}", 1) for k in ("dry_N", "dry_long_N", "dry_lat_N", "drag_long_N_s_per_m",
+         tuple((f"discrepancy_tail_{k}", 1) for k in ("dry_long_N", "dry_lat_N", "drag_long_N_s_per_m",
                                                          "drag_lat_N_s_per_m")) + (TETHER_MEAN,)),
     Cell("wheel toe 1.5 deg", "drake", {"wheel_toe_deg": 1.5},
          tuple((f"discrepancy_{g}_side_by_long_N_s_per_m", 1) for g in ("front", "middle", "rear"))),
@@ -84,7 +83,7 @@ CELLS = [
          {"discrepancy_rear_drag_lat_N_s_per_m": -0.5 * C_LAT},
          (("discrepancy_rear_drag_lat_N_s_per_m", -1), ("discrepancy_rear_dry_lat_N", -1))),
     Cell("tail tether 1 N (reference.py)", "reference", {"tail_tether_N": 1.0},
-         tuple((f"discrepancy_tail_{k}", 1) for k in ("dry_N", "dry_long_N", "dry_lat_N", "drag_long_N_s_per_m",
+         tuple((f"discrepancy_tail_{k}", 1) for k in ("dry_long_N", "dry_lat_N", "drag_long_N_s_per_m",
                                                          "drag_lat_N_s_per_m")) + (TETHER_MEAN,)),
     Cell("floor seam 2 N m at x = 0.3 m (reference.py)", "reference", {"floor_seam_Nm": 2.0, "floor_seam_x_m": 0.3},
          None),

@@ -44,8 +44,6 @@ SITE_KINDS = (
     ("push_lat", "N", "a constant force to its left"),
     ("quad_long", "N_s2_per_m2", "a force against its longitudinal velocity, growing with its square (|v| v)"),
     ("quad_lat", "N_s2_per_m2", "a force against its lateral velocity, growing with its square (|v| v)"),
-    # A point dragged on the floor (a cable, a skid): one Coulomb force against its velocity, not one per axis.
-    ("dry", "N", "a dry (Coulomb) force against its velocity, whatever its direction"),
 )
 # Failed-joint kinds: torque tau = joint_shapes(q, q_dot) @ theta, in failed (free) joints only.
 JOINT_KINDS = (
@@ -80,9 +78,6 @@ def site_shapes(u_long, u_lat, eps):
     out[1, 6] = 1.0
     out[0, 7] = -abs(u_long) * u_long
     out[1, 8] = -abs(u_lat) * u_lat
-    root = np.sqrt(u_long * u_long + u_lat * u_lat + eps * eps)
-    out[0, 9] = -u_long / root
-    out[1, 9] = -u_lat / root
     return out
 
 
@@ -97,10 +92,6 @@ def site_shape_rates(u_long, u_lat, eps):
     across[1, 3] = -(eps * eps) / (u_lat * u_lat + eps * eps) ** 1.5
     along[0, 7] = -2.0 * abs(u_long)
     across[1, 8] = -2.0 * abs(u_lat)
-    cube = (u_long * u_long + u_lat * u_lat + eps * eps) ** 1.5
-    along[0, 9] = -(u_lat * u_lat + eps * eps) / cube
-    along[1, 9] = across[0, 9] = u_long * u_lat / cube
-    across[1, 9] = -(u_long * u_long + eps * eps) / cube
     return along, across
 
 

@@ -44,8 +44,7 @@ JOINT_EPS_RAD_S = 0.01  # a failed joint's dry torque's sgn() smoothing, as the 
 # module's left), a positive drag or dry coefficient resisting the motion.
 WHEEL_GROUPS = {"front": range(1, 5), "middle": range(5, 10), "rear": range(10, 14)}
 SITE_KINDS = (
-    "drag_long", "drag_lat", "dry_long", "dry_lat", "side_by_long", "push_long", "push_lat", "quad_long", "quad_lat",
-    "dry",
+    "drag_long", "drag_lat", "dry_long", "dry_lat", "side_by_long", "push_long", "push_lat", "quad_long", "quad_lat"
 )  # fmt: skip
 JOINT_KINDS = ("bias", "spring", "drag", "dry")
 SEAM_WIDTH_M = 0.03  # a floor seam's reach along x (the standard deviation of its Gaussian profile)
@@ -102,13 +101,11 @@ class HiddenForces:
 def site_law(c: dict, u_long, u_lat, eps) -> tuple:
     """A site's force (f_long, f_lat) in its module's frame for its group's coefficients `c` (kind -> value)."""
     k = lambda kind: c.get(kind, 0.0)  # noqa: E731
-    isotropic = k("dry") / np.sqrt(u_long * u_long + u_lat * u_lat + eps * eps)
     f_long = (
         -k("drag_long") * u_long
         - k("dry_long") * u_long / np.sqrt(u_long * u_long + eps * eps)
         + k("push_long")
         - k("quad_long") * np.abs(u_long) * u_long
-        - isotropic * u_long
     )
     f_lat = (
         -k("drag_lat") * u_lat
@@ -116,7 +113,6 @@ def site_law(c: dict, u_long, u_lat, eps) -> tuple:
         + k("side_by_long") * u_long
         + k("push_lat")
         - k("quad_lat") * np.abs(u_lat) * u_lat
-        - isotropic * u_lat
     )
     return f_long, f_lat
 

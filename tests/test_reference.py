@@ -113,7 +113,6 @@ def test_hidden_forces_read_their_keys_and_act_as_defined():
     assert site_law({"quad_long": 2.0, "quad_lat": 1.0}, -0.3, 0.2, eps) == pytest.approx((0.18, -0.04))
     f_long, f_lat = site_law({"dry_long": 1.0, "dry_lat": 1.0}, 1.0, -1.0, eps)
     assert f_long == pytest.approx(-1.0, rel=1e-6) and f_lat == pytest.approx(1.0, rel=1e-6)
-    assert site_law({"dry": 2.0}, 0.3, -0.4, eps) == pytest.approx((-1.2, 1.6), rel=1e-5)  # |f| = 2 N against u
     hidden = HiddenForces.from_effects(
         {"tail_tether_N": 1.5, "wheel_toe_deg": 2.0, "discrepancy_failed_joint_spring_Nm_per_rad": 0.3,
          "discrepancy_failed_joint_bias_Nm": 0.1, "discrepancy_head_side_by_long_N_s_per_m": 3.0}

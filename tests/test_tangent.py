@@ -64,7 +64,6 @@ DISCREPANCY = {
     "discrepancy_head_push_lat_N": 0.1,
     "discrepancy_head_drag_long_N_s_per_m": 0.2,
     "discrepancy_rear_push_long_N": -0.1,
-    "discrepancy_middle_dry_N": 0.1,
     "discrepancy_failed_joint_bias_Nm": 0.02,
     "discrepancy_failed_joint_spring_Nm_per_rad": 0.1,
     "discrepancy_failed_joint_drag_Nm_s_per_rad": 0.01,
