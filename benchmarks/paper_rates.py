@@ -287,9 +287,14 @@ def section(rows: list, cells: list, trials_per_case: int, which: str) -> tuple:
     used = sorted({r["seed"] for r in rows})
     head = (
         f"Measured by `python benchmarks/paper_rates.py --markdown` ({which}; last run {time.strftime('%Y-%m-%d')}; "
-        f"{trials_per_case} trials of each paper case per campaign, seeds {used[0]}-{used[-1]}, {len(rows)} campaigns):"
+        f"{trials_per_case} trials of each paper case per campaign, {seed_span(used)}, {len(rows)} campaigns):"
     )
     return "\n\n".join([head, body, summary, targets(rows, cells)]), summary
+
+
+def seed_span(used: list) -> str:
+    """'seed 102' or 'seeds 102-105' of a sorted list of seeds."""
+    return f"seed {used[0]}" if len(used) == 1 else f"seeds {used[0]}-{used[-1]}"
 
 
 def complete_seeds(rows: list, cells: list) -> tuple:
@@ -373,7 +378,7 @@ def main():
         kinds = {c.label: hidden_kind(c) for c in CELLS}
         basis = reported or chose  # the verdicts' rates from the reported seeds once one is complete
         used = sorted({r["seed"] for r in basis})
-        seeds = f"seeds {used[0]}-{used[-1]}" + ("" if reported else ", the seeds that chose a rule") if used else ""
+        seeds = seed_span(used) + ("" if reported else ", the seeds that chose a rule") if used else ""
         rates = {
             "measured": time.strftime("%Y-%m-%d"),
             "design": f"{args.trials_per_case} trials each of none, J7, J13, J7+bias, 10 s; {len(basis)} campaigns, "
