@@ -198,6 +198,7 @@ def one(cell: Cell, seed: int, args) -> dict:
         "steps": [w["model"] for w in result.waterfall],
         "simulations": result.simulations,
         "wall_s": time.perf_counter() - started,
+        "resumed": result.resumed,  # replays taken from an earlier, interrupted run's checkpoint
     }
 
 
@@ -224,14 +225,16 @@ def table(rows: list, cells: list) -> tuple:
         }
         covered = [c for r in mine for c in r["coverage"]]
         cov = f"{sum(covered)}/{len(covered)}" if covered else "-"
-        minutes = float(np.median([r["wall_s"] for r in mine])) / 60  # a campaign timed across a pause reads long
+        # Campaigns run whole: not resumed from a checkpoint (its replays cost nothing), not timed across a pause.
+        whole = [r["wall_s"] for r in mine if not r.get("resumed") and not r.get("paused")]
+        minutes = f"{float(np.median(whole)) / 60:.1f}" if whole else "-"
         left = collections.Counter(t.rsplit("_", 1)[0] for r in mine for t in r.get("unexplained_trials", []))
         left_text = ", ".join(f"{case} {k}" for case, k in left.most_common(3)) or "-"
         taken = collections.Counter(e for r in mine for e in sorted(look_alikes(r, cell)))  # ties: by name, every run
         taken_text = ", ".join(f"{e} {k}" for e, k in taken.most_common(2)) or "-"
         lines.append(
             f"| {cell.label} | {n} | {count['right']} | {count['wrong']} | {count['ambiguous']} | "
-            f"{count['unexplained']} | {count['missed']} | {cov} | {taken_text} | {left_text} | {minutes:.1f} |"
+            f"{count['unexplained']} | {count['missed']} | {cov} | {taken_text} | {left_text} | {minutes} |"
         )
         totals["right"] += count["right"]
         totals["wrong"] += count["wrong"]
