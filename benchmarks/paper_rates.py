@@ -199,6 +199,8 @@ def one(cell: Cell, seed: int, args) -> dict:
         "simulations": result.simulations,
         "wall_s": time.perf_counter() - started,
         "resumed": result.resumed,  # replays taken from an earlier, interrupted run's checkpoint
+        # Set by hand where known, never here: "paused" (timed across a pause of the grid), "replayed_wall_s" (a
+        # replay's time beside the first whole run's, kept as wall_s).
     }
 
 
@@ -285,7 +287,7 @@ def targets(rows: list, cells: list) -> str:
 def section(rows: list, cells: list, trials_per_case: int, which: str) -> tuple:
     """(the table of `rows` with its heading, summary and targets, as markdown; the summary line)."""
     if not rows:
-        return f"{which[0].upper()}{which[1:]}: no campaign diagnosed yet.", "no campaign diagnosed yet"
+        return f"{which[0].upper()}{which[1:]}: no seed complete yet.", "no seed complete yet"
     body, summary = table(rows, cells)
     used = sorted({r["seed"] for r in rows})
     head = (
@@ -296,19 +298,25 @@ def section(rows: list, cells: list, trials_per_case: int, which: str) -> tuple:
 
 
 def seed_span(used: list) -> str:
-    """'seed 102' or 'seeds 102-105' of a sorted list of seeds."""
-    return f"seed {used[0]}" if len(used) == 1 else f"seeds {used[0]}-{used[-1]}"
+    """'seed 102', 'seeds 102-105' or 'seeds 102, 104' of a sorted list of seeds."""
+    if len(used) == 1:
+        return f"seed {used[0]}"
+    if used == list(range(used[0], used[-1] + 1)):
+        return f"seeds {used[0]}-{used[-1]}"
+    return "seeds " + ", ".join(str(s) for s in used)
 
 
 def complete_seeds(rows: list, cells: list) -> tuple:
-    """(the rows of the seeds whose every cell is diagnosed; a note naming the seeds still in progress)."""
-    labels = {c.label for c in cells}
+    """(the rows of `cells` in the seeds whose every cell of the grid (CELLS) is diagnosed; a note naming the seeds
+    still in progress). A seed is judged on the whole grid, whatever `cells` a table shows."""
+    grid, shown = {c.label for c in CELLS}, {c.label for c in cells}
     seen = {}
     for r in rows:
         seen.setdefault(r["seed"], set()).add(r["cell"])
-    pending = sorted(s for s, got in seen.items() if not labels <= got)
-    note = ", ".join(f"seed {s} ({len(seen[s] & labels)} of {len(labels)} cells)" for s in pending)
-    return [r for r in rows if r["seed"] not in pending], (f"Not yet counted, in progress: {note}." if note else "")
+    pending = sorted(s for s, got in seen.items() if not grid <= got)
+    note = ", ".join(f"seed {s} ({len(seen[s] & grid)} of {len(grid)} cells)" for s in pending)
+    kept = [r for r in rows if r["seed"] not in pending and r["cell"] in shown]
+    return kept, (f"Not yet counted, in progress: {note}." if note else "")
 
 
 def paired(rows: list, variant: str) -> str:

@@ -770,9 +770,10 @@ def test_the_paper_rates_table_counts_a_seed_only_once_every_cell_is_diagnosed(m
     """A seed part-way through the grid would weigh the cells it reached: its rows wait, and the table names it."""
     monkeypatch.syspath_prepend(str(REPO / "benchmarks"))
     paper_rates = importlib.import_module("paper_rates")
-    cells = paper_rates.CELLS[:2]
-    rows = [{"cell": c.label, "seed": 102} for c in cells] + [{"cell": cells[0].label, "seed": 103}]
-    counted, note = paper_rates.complete_seeds(rows, cells)
-    assert counted == rows[:2]
-    assert note == "Not yet counted, in progress: seed 103 (1 of 2 cells)."
-    assert paper_rates.complete_seeds(rows[:2], cells) == (rows[:2], "")
+    grid, shown = paper_rates.CELLS, paper_rates.CELLS[:2]
+    whole = [{"cell": c.label, "seed": 102} for c in grid]
+    begun = [{"cell": c.label, "seed": 103} for c in grid[:2]] + [{"cell": "a cell of no grid", "seed": 103}]
+    counted, note = paper_rates.complete_seeds(whole + begun, shown)
+    assert counted == whole[:2]  # the shown cells of the complete seed: a seed with every shown cell still waits
+    assert note == f"Not yet counted, in progress: seed 103 (2 of {len(grid)} cells)."
+    assert paper_rates.complete_seeds(whole, grid) == (whole, "")
