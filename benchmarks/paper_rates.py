@@ -1,7 +1,7 @@
 """How often a diagnosis is right on the paper's design (issue 42): a confusion table over seeded campaigns.
 
     python benchmarks/paper_rates.py [--seeds 100-105] [--cells CELL,...] [--trials-per-case 2] [--workers 2]
-                                     [--variant default|keep-replay-error|full-replay-error]
+                                     [--variant default|keep-replay-error|full-replay-error|...]
                                      [--out benchmarks/out/paper_rates]
                                      [--markdown] [--table-only]
 
@@ -45,6 +45,7 @@ from doc_blocks import REPO_ROOT, append_row, check_block, load_rows, rows_file,
 
 from rc1_drake.config import Friction, Stop
 from rc1_drake.diagnose import diagnose
+from rc1_drake.diagnose.thresholds import Thresholds
 from rc1_drake.diagnose.verdict import RATES_FILE, verdict_rates
 from rc1_drake.measurements import load_campaign
 from rc1_drake.synthesize import PAPER_DESIGN, Case, Noise, Variation, synthesize_campaign
@@ -58,6 +59,9 @@ VARIANTS = {
     "default": {},
     "keep-replay-error": {"replay_error": "start"},
     "full-replay-error": {"replay_error": "full"},
+    # The failed joint's scatter taken as noise (diagnose/scatter.py) up to 4 probe steps: on seeds 100-101,
+    # reference.py's nulls took 1.2-2.6, a failed joint's 0.6 N m dry friction 11.6 (docs/findings.md, 2026-11-28).
+    "failed-joint-scatter": {"thresholds": Thresholds(max_failed_joint_scatter=4.0)},
 }
 
 
@@ -189,6 +193,7 @@ def one(cell: Cell, seed: int, args) -> dict:
         "outcome": classify(str(result.verdict), result.accepted, cell.expected),
         "coverage": coverage(result, cell),
         "unexplained_trials": sorted(result.unexplained_trials),
+        "scatter": result.scatter,  # [taken, unbounded] where the misfit took the failed joint's scatter
         "ambiguous_between": list(result.rounds[-1].ambiguous) if result.rounds else [],
         "partial": [r.partial for r in result.rounds if r.partial],
         "final_effects": result.effects,

@@ -53,10 +53,12 @@ class Linearization:
     # per trial, the last full replay_errors: its first PAIRED_DRAWS draws (residuals, start rows), its bias and start
     # bias; a paired measurement repeats only those draws and moves that bias by the difference (replay_errors)
     draws: list[tuple] | None = None
+    # per trial: the failed joint's scatter taken as noise, its variance per row (diagnose/scatter.py), in its weight
+    scatter: list[float] | None = None
 
     def __post_init__(self):
         if self.weights is None:
-            self.weights = trial_weights(self.trials, self.noise)
+            self.weights = trial_weights(self.trials, self.noise, self.scatter)
 
     def rows(self, names, trials, *, weighted=False) -> tuple:
         """(X, r0, channels, per-trial row counts) over the `trials` indices; `weighted`: each trial's
@@ -105,13 +107,15 @@ class Linearization:
         return next(c for c in self.coordinates if c.name == name)
 
 
-def trial_weights(trials, noise) -> np.ndarray:
-    """Each trial's weight in the fits: 1 / sqrt(1 + v) with v its case's mean input-noise variance (in
-    standardized units, where the sensor noise is 1), a scalar feasible generalized least squares. A trial
-    whose replay moves a lot with the angle noise alone (a joint-2 failure: final position +-10 cm, measured)
-    tells less about the physics and no longer dominates the fit."""
+def trial_weights(trials, noise, scatter=None) -> np.ndarray:
+    """Each trial's weight in the fits: 1 / sqrt(1 + v + s) with v its case's mean input-noise variance (in
+    standardized units, where the sensor noise is 1) and s its failed joint's scatter per row where one is taken
+    (`scatter`, per trial), a scalar feasible generalized least squares. A trial whose replay moves a lot with the
+    angle noise alone (a joint-2 failure: final position +-10 cm, measured) tells less about the physics and no
+    longer dominates the fit."""
     variance = pooled_per_case(trials, [float(np.mean(np.diag(n))) if len(n) else 0.0 for n in noise])
-    return np.array([1.0 / math.sqrt(1.0 + variance[t.case]) for t in trials])
+    extra = scatter or [0.0] * len(trials)
+    return np.array([1.0 / math.sqrt(1.0 + variance[t.case] + s) for t, s in zip(trials, extra, strict=True)])
 
 
 def pooled_per_case(trials, values) -> dict[str, float]:
@@ -231,7 +235,12 @@ def _measured_error(lin: Linearization, trials, friction, effects, evaluator, sa
         trials, friction, effects, evaluator, samples, lin if paired and lin.draws else None
     )
     return dataclasses.replace(
-        lin, bias=bias, noise=noise, weights=trial_weights(lin.trials, noise), start_bias=start_bias, draws=draws
+        lin,
+        bias=bias,
+        noise=noise,
+        weights=trial_weights(lin.trials, noise, lin.scatter),
+        start_bias=start_bias,
+        draws=draws,
     )
 
 

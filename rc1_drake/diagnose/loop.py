@@ -21,7 +21,8 @@ from .linearize import Linearization, linearize, moved, relinearize, with_replay
 from .probe import suggest_experiments
 from .replays import INPUT_NOISE_SAMPLES, evaluate, replay_and_score
 from .report import Diagnosis, Round, waterfall_step
-from .significance import misfit
+from .scatter import failed_joint_scatter
+from .significance import final_covariances, misfit
 from .thresholds import THRESHOLDS, Thresholds
 from .verdict import verdict
 
@@ -123,7 +124,9 @@ def _candidates(trials, effects, candidates) -> tuple:
 def needs_friction_search(lin: Linearization, names: list[str], free: list[str], thresholds: Thresholds) -> bool:
     """Whether the screen's verdict (no coefficient of `names` identified) was judged far from the data: only where
     the start's replays miss by more than the noise (significance.misfit). At the data, a search walks the flat
-    directions the screen saw down the noise (seen: a campaign at the paper's friction, mu_lat moved 1.5 -> 2.8)."""
+    directions the screen saw down the noise (seen: a campaign at the paper's friction, mu_lat moved 1.5 -> 2.8).
+    Never with the failed joint's scatter taken as noise: a far friction moves the failed joints' trials too, and the
+    scatter took it (seen: mu_lat 0.6 in the data, tau 4.8, no search, a lateral asymmetry accepted)."""
     return bool(names) and not free and not misfit(lin, lin.r0, 0, thresholds).consistent
 
 
@@ -156,6 +159,11 @@ def best_candidate_at_start(lin: Linearization, nuisance: list[str], replayed: l
         if best is None or cost < best[1]:
             best = (c.name, cost, len(owned(lin, c.name)))
     return best
+
+
+def _scatter(lin: Linearization, evaluator, thresholds: Thresholds):
+    """The failed joint's scatter columns at `lin` where a misfit takes that scatter as noise, else None."""
+    return failed_joint_scatter(lin, evaluator) if thresholds.max_failed_joint_scatter > 0 else None
 
 
 def owned(lin: Linearization, name: str) -> list[str]:
@@ -214,6 +222,7 @@ class _Search:
     stop_reason: str = ""
     replay_error: str = "paired"  # at each accepted and polished model: one of REPLAY_ERROR_MODES
     friction_search: str = ""  # whether the friction was searched at the start, and what was decided (far_friction)
+    scatter: object = None  # the failed joint's scatter columns (scatter.py), where a misfit takes it as noise
 
     @classmethod
     def begin(cls, lin, evaluator, trials, replayed, held, samples, thresholds) -> "_Search":
@@ -249,6 +258,7 @@ class _Search:
         model_names = nuisance + list(free)
         search = cls(lin, evaluator, trials, replayed, nuisance, free, model_names, samples, thresholds, waterfall)
         search.friction_search = note
+        search.scatter = _scatter(lin, evaluator, thresholds)  # at the model the rounds start from
         return search
 
     def label(self) -> str:
@@ -259,12 +269,13 @@ class _Search:
         if (
             index
             and misfit(
-                self.lin, self.lin.r0, len(physics_names(self.lin, self.model_names)), self.thresholds
+                self.lin, self.lin.r0, len(physics_names(self.lin, self.model_names)), self.thresholds, self.scatter
             ).consistent
         ):
             # What the accepted effects leave is noise: searching it only finds false alarms (docs/diagnosis.md).
             self.stop_reason = "what the accepted effects leave is consistent with the noise"
             return False
+        self._weigh_scatter()
         names, baseline, refit_note = self._baseline(first=index == 0)
         results, checked, left = self._candidates_checked(names, baseline)
         chosen, ambiguous, partial = decide(results, self.thresholds)
@@ -281,6 +292,7 @@ class _Search:
                 candidates=results,
                 accepted=chosen,
                 misfit_p=left.p,
+                scatter=left.scatter,
                 refit=refit_note,
                 ambiguous=ambiguous,
                 partial=partial,
@@ -297,6 +309,14 @@ class _Search:
             return False
         self._accept(*checked[chosen])
         return True
+
+    def _weigh_scatter(self) -> None:
+        """Today's trials weighed by the failed joint's scatter (scatter.py), its tau estimated at today's model's
+        fit: one model of the noise for the misfit and the fits."""
+        if self.scatter is not None:
+            residual = fit(self.lin, self.model_names).residual
+            tau = final_covariances(self.lin, residual, self.scatter, self.thresholds.max_failed_joint_scatter)[1]
+            self.lin = self.scatter.weighing(self.lin, tau)
 
     def _baseline(self, first: bool) -> tuple:
         """(the round's fitted names, today's model's held-out score, what happened to its parameters): refitted
@@ -334,7 +354,7 @@ class _Search:
         today's model's misfit)."""
         lin, evaluator, thresholds = self.lin, self.evaluator, self.thresholds
         base_fit = fit(lin, names)
-        left = misfit(lin, base_fit.residual, len(physics_names(lin, names)), thresholds)
+        left = misfit(lin, base_fit.residual, len(physics_names(lin, names)), thresholds, self.scatter)
         results = rank(
             lin, base_fit, names, [n for n in self.replayed if n not in self.accepted], thresholds=thresholds
         )
@@ -410,7 +430,7 @@ class _Search:
             runs={t.trial_id: o[1] for t, o in zip(lin.trials, out, strict=True)},
         )
         simulated = [lin.corrected(k, trial_residual(t, report.runs[t.trial_id])) for k, t in enumerate(lin.trials)]
-        left = misfit(lin, simulated, len(physics_names(lin, self.model_names)), self.thresholds)
+        left = misfit(lin, simulated, len(physics_names(lin, self.model_names)), self.thresholds, self.scatter)
         final = {
             n: [float(lin.coordinate(n).value), float(se)]
             for n, se in zip(final_fit.names, final_fit.standard_errors, strict=True)
@@ -439,6 +459,7 @@ class _Search:
             verdict=None,
             explanation="",
             misfit_p=left.p,
+            scatter=[left.scatter, left.scatter_unbounded] if self.scatter else None,
             unexplained_trials=left.outliers,
             not_detectable=not_detectable,
             where_it_fails=where_it_fails(report, campaign).to_json(),

@@ -68,6 +68,7 @@ class Round:
     candidates: list[CandidateResult]  # ranked, best first
     accepted: str | None
     misfit_p: float  # today's model's final-position misfit against the noise
+    scatter: float = 0.0  # the failed joint's scatter the misfit took as noise (tau, probe steps; scatter.py)
     refit: str = ""  # whether today's model's parameters were refitted this round, or kept (and why)
     ambiguous: list[str] = dataclasses.field(default_factory=list)  # candidates that explain it alike (none accepted)
     partial: str | None = None  # the best candidate, when it helped by less than half (not accepted)
@@ -111,6 +112,7 @@ class Diagnosis:
     friction_search: str = ""  # at the start, where no coefficient was identified (loop.far_friction)
     resumed: int = 0  # of the simulations, results taken from a checkpoint of an interrupted run
     unexplained_trials: dict[str, dict] = dataclasses.field(default_factory=dict)  # trial -> misfit (see Misfit)
+    scatter: list | None = None  # [tau taken, tau unbounded] where the misfit took the failed joint's scatter
     trials: list = dataclasses.field(default_factory=list, repr=False)  # the trials, with their fitted starts
     report: object = dataclasses.field(default=None, repr=False)  # compare.CampaignReport of the final model (plots)
 
@@ -137,6 +139,7 @@ class Diagnosis:
                     "effects": r.effects,
                     "accepted": r.accepted,
                     "misfit_p": r.misfit_p,
+                    "scatter": r.scatter,
                     "refit": r.refit,
                     "polished": r.polished,
                     "ambiguous": r.ambiguous,
@@ -154,6 +157,7 @@ class Diagnosis:
             "friction_search": self.friction_search,
             "waterfall": self.waterfall,
             "misfit_p": self.misfit_p,
+            "scatter": self.scatter,
             "unexplained_trials": self.unexplained_trials,
             "not_detectable": self.not_detectable,
             "where_it_fails": self.where_it_fails,
@@ -182,6 +186,11 @@ class Diagnosis:
             lines.append(error + (moved or ", where the model stayed"))
         left = ", ".join(f"{k} ({o['off_cm']:.0f} cm off)" for k, o in self.unexplained_trials.items())
         lines.append(f"trials still unexplained: {left or 'none'}")
+        if self.scatter:
+            lines.append(
+                f"the failed joint's trial-by-trial scatter taken as noise: {self.scatter[0]:.2g} probe steps of its "
+                f"terms (maximum likelihood {self.scatter[1]:.2g}; diagnose/scatter.py)"
+            )
         return lines
 
     def format(self) -> str:
@@ -197,7 +206,9 @@ class Diagnosis:
             lines += [
                 "",
                 f"round {k + 1}: candidates against {r.baseline.label} (held-out: leave one trial out; "
-                f"final-position misfit {p_text(r.misfit_p)}; today's model's parameters: {r.refit})",
+                f"final-position misfit {p_text(r.misfit_p)}"
+                + (f" with the failed joint's scatter {r.scatter:.2g} taken as noise" if r.scatter else "")
+                + f"; today's model's parameters: {r.refit})",
                 r.table(),
             ]
             if r.polished:
