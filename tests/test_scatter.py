@@ -31,12 +31,12 @@ def _draws(rng, trials: int, tau: float, shared=None) -> tuple:
     return Scatter(columns), residual
 
 
-def test_the_scatters_scale_is_its_maximum_likelihood_and_stops_at_its_bound():
+def test_the_scatters_scale_is_its_maximum_likelihood_and_none_is_taken_beyond_its_bound():
     rng = np.random.default_rng(0)
     estimates = [Scatter.scale(*_draws(rng, 400, 2.0), [NOISE] * 400, bound=100.0)[0] for _ in range(5)]
     assert abs(np.mean(estimates) - 2.0) < 0.15  # 200 failed-joint trials: about 4% of tau each
     scatter, residual = _draws(rng, 400, 2.0)
-    assert scatter.scale(residual, [NOISE] * 400, bound=1.0) == (1.0, scatter.scale(residual, [NOISE] * 400, 100.0)[0])
+    assert scatter.scale(residual, [NOISE] * 400, bound=1.0) == (0.0, scatter.scale(residual, [NOISE] * 400, 100.0)[0])
     nulls = [Scatter.scale(*_draws(rng, 40, 0.0), [NOISE] * 40, bound=100.0)[0] for _ in range(20)]
     assert np.median(nulls) < 0.3  # no scatter: mostly none found
     assert scatter.scale(residual, [NOISE] * 400, bound=0.0) == (0.0, 0.0)  # off: nothing estimated
@@ -58,7 +58,8 @@ def test_a_misfit_takes_the_failed_joints_scatter_as_noise_up_to_its_bound_and_s
     assert not misfit(lin, residual, 0).consistent  # the noise alone: the failed-joint trials are far off
     left = misfit(lin, residual, 0, taken, scatter)
     assert left.consistent and 2.0 < left.scatter < 4.5 and not left.outliers
-    assert not misfit(lin, residual, 0, Thresholds(max_failed_joint_scatter=0.5), scatter).consistent
+    beyond = misfit(lin, residual, 0, Thresholds(max_failed_joint_scatter=0.5), scatter)
+    assert not beyond.consistent and beyond.scatter == 0 and beyond.scatter_unbounded == left.scatter
     residual[0] = residual[0] + np.array([8.0, 0.0, 0, 0, 0, 0])  # a no-failure trial 8 sigmas off: not scatter
     assert list(misfit(lin, residual, 0, taken, scatter).outliers) == ["t0"]
     # A law the failed joint follows in every trial alike (the same terms) is a scatter too, once large enough:

@@ -2,12 +2,14 @@
 
 Another model's failed joint swings differently from trial to trial, and its misses share no law: fitting the
 failed joint's constant torque, centring spring and viscous torque shared by a campaign's trials trades one trial
-held out for another (docs/findings.md, 2026-11-28). So each failed-joint trial's final position gets, beside the hand
-noise and the input noise, tau^2 X X^T: X its final position's columns by those three terms (discrepancy.py's
-failed-joint terms, per probe step), as if each trial drew its own terms with a standard deviation of tau probe steps;
-tau one scale per campaign, by maximum likelihood at the model the misfit is judged at, and at most
-Thresholds.max_failed_joint_scatter. An effect that shows only in the failed joints within that bound is taken as
-scatter: the bound is what keeps a failed joint's dry friction (a library effect) a finding."""
+held out for another (docs/findings.md, 2026-11-28). So each failed-joint trial's residuals get, beside the hand
+noise and the input noise, tau^2 X X^T: X their columns by those three terms (discrepancy.py's failed-joint terms, per
+probe step), as if each trial drew its own terms with a standard deviation of tau probe steps; tau one scale per
+campaign, by maximum likelihood on the final positions at the model the misfit is judged at, taken in the misfit test
+and the trials' weights. Taken only up to Thresholds.max_failed_joint_scatter, the largest scatter the models'
+differences were measured to make: beyond it the failed joints' trials show a law, not a scatter (a failed joint's dry
+friction, a working joint's potentiometer offset), and none is taken. An effect that shows only in the failed joints
+within that bound is taken as scatter."""
 
 import dataclasses
 import math
@@ -43,8 +45,8 @@ class Scatter:
         return dataclasses.replace(lin, scatter=scatter, weights=trial_weights(lin.trials, lin.noise, scatter))
 
     def scale(self, residual: list[np.ndarray], variances: list[float], bound: float) -> tuple[float, float]:
-        """(tau in [0, bound], tau unbounded: the maximum-likelihood scale of the failed-joint trials' final positions
-        `residual` given their noise `variances`). 0 where no trial has a failed joint."""
+        """(tau taken: the maximum-likelihood scale of the failed-joint trials' final positions `residual` given their
+        noise `variances` where it is at most `bound`, else 0; that scale). 0 where no trial has a failed joint."""
         failed = [(r[:2], v, x[:2]) for r, v, x in zip(residual, variances, self.columns, strict=True) if x is not None]
         if not failed or bound <= 0:
             return 0.0, 0.0
@@ -61,7 +63,7 @@ class Scatter:
             lambda s: nll(math.exp(s)), bounds=(math.log(1e-6 * upper), math.log(upper)), method="bounded"
         )
         unbounded = min((0.0, math.exp(float(inner.x))), key=nll)
-        return min(unbounded, bound), unbounded  # one scale: its likelihood rises up to the bound
+        return (unbounded if unbounded <= bound else 0.0), unbounded
 
 
 def _largest_scale(failed) -> float:

@@ -20,9 +20,9 @@ def _final_position_variances(lin: Linearization) -> list[float]:
 
 
 def final_covariances(lin: Linearization, residual, scatter: Scatter | None = None, bound: float = 0.0) -> tuple:
-    """(per trial, its final position's 2 x 2 covariance, standardized; the failed joint's scatter tau taken in it,
-    at most `bound`; tau unbounded): the noise (_final_position_variances), plus the failed joint's scatter where
-    `scatter` is given (scatter.py)."""
+    """(per trial, its final position's 2 x 2 covariance, standardized; the failed joint's scatter tau taken in it
+    (none beyond `bound`: Scatter.scale); its maximum-likelihood value): the noise (_final_position_variances), plus
+    the failed joint's scatter where `scatter` is given (scatter.py)."""
     variances = _final_position_variances(lin)
     if scatter is None:
         return [v * np.eye(2) for v in variances], 0.0, 0.0
@@ -53,7 +53,7 @@ class Misfit:
     outliers: dict[str, dict]  # trial -> {"off_cm", "noise_cm", "p"}
     p_threshold: float = THRESHOLDS.p_misfit  # consistent with the noise above it
     scatter: float = 0.0  # the failed joint's scatter taken as noise (tau, probe steps; scatter.py)
-    scatter_unbounded: float = 0.0  # its maximum-likelihood value without Thresholds.max_failed_joint_scatter
+    scatter_unbounded: float = 0.0  # its maximum-likelihood value, taken or not (Thresholds.max_failed_joint_scatter)
 
     @property
     def consistent(self) -> bool:

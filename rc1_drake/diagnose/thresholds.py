@@ -23,9 +23,9 @@ class Thresholds:
     p_misfit: float = 1e-3
     # More outlying trials than this fraction: the misfit is the campaign's, not theirs.
     max_outlier_fraction: float = 0.1
-    # The failed joint's trial-by-trial scatter a misfit takes as noise (diagnose/scatter.py's tau, in probe steps of
-    # its terms): 0 takes none. Measured at the paper's model: reference.py's nulls 1.6-2.6, a failed joint's 0.6 N m
-    # dry friction 11.7 (docs/findings.md, 2026-11-28): the calibration seeds choose it.
+    # The largest failed joint's trial-by-trial scatter (diagnose/scatter.py's tau, in probe steps of its terms) that
+    # a misfit and the fits take as noise; beyond it none is taken; 0: never. Measured at the paper's model:
+    # reference.py's nulls 1.2-2.6, a failed joint's 0.6 N m dry friction 11.7 (docs/findings.md, 2026-11-28).
     max_failed_joint_scatter: float = 0.0
 
 

@@ -41,7 +41,8 @@ def replay(trial, friction: Friction, effects=None):
 # The diagnosis's modules that decide from results and compute none of a checkpointed job's (no job function imports
 # them: tests/test_diagnose.py checks it): a rule changed there reuses the replays on disk (paper_rates.py --variant).
 DECISION_ONLY = tuple(
-    f"diagnose/{name}.py" for name in ("decide", "fit", "loop", "report", "scatter", "significance", "thresholds", "verdict")
+    f"diagnose/{name}.py"
+    for name in ("decide", "fit", "loop", "report", "scatter", "significance", "thresholds", "verdict")
 )
 
 
