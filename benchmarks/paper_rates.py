@@ -204,8 +204,9 @@ def one(cell: Cell, seed: int, args) -> dict:
         "simulations": result.simulations,
         "wall_s": time.perf_counter() - started,
         "resumed": result.resumed,  # replays taken from an earlier, interrupted run's checkpoint
-        # Set by hand where known, never here: "paused" (timed across a pause of the grid), "replayed_wall_s" (a
-        # replay's time beside the first whole run's, kept as wall_s).
+        # Set by hand where known, never here: "paused" (timed across a pause of the grid), "shared_cpu" (timed beside
+        # other heavy work on the machine), "replayed_wall_s" (a replay's time beside the first whole run's, kept as
+        # wall_s).
     }
 
 
@@ -232,8 +233,9 @@ def table(rows: list, cells: list) -> tuple:
         }
         covered = [c for r in mine for c in r["coverage"]]
         cov = f"{sum(covered)}/{len(covered)}" if covered else "-"
-        # Campaigns run whole: not resumed from a checkpoint (its replays cost nothing), not timed across a pause.
-        whole = [r["wall_s"] for r in mine if not r.get("resumed") and not r.get("paused")]
+        # Campaigns run whole and alone: not resumed from a checkpoint (its replays cost nothing), not timed across a
+        # pause or beside other work.
+        whole = [r["wall_s"] for r in mine if not (r.get("resumed") or r.get("paused") or r.get("shared_cpu"))]
         minutes = f"{float(np.median(whole)) / 60:.1f}" if whole else "-"
         left = collections.Counter(t.rsplit("_", 1)[0] for r in mine for t in r.get("unexplained_trials", []))
         left_text = ", ".join(f"{case} {k}" for case, k in left.most_common(3)) or "-"
