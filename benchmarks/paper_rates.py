@@ -60,7 +60,7 @@ VARIANTS = {
     "keep-replay-error": {"replay_error": "start"},
     "full-replay-error": {"replay_error": "full"},
     # The failed joint's scatter taken as noise (diagnose/scatter.py) up to 4 probe steps: on seeds 100-101,
-    # reference.py's nulls took 1.2-2.6, a failed joint's 0.6 N m dry friction 11.6 (docs/findings.md, 2026-11-28).
+    # reference.py's nulls took 1.2-2.6, a failed joint's 0.6 N m dry friction 11.7 (docs/findings.md, 2026-11-28).
     "failed-joint-scatter": {"thresholds": Thresholds(max_failed_joint_scatter=4.0)},
 }
 

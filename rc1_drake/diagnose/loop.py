@@ -21,7 +21,7 @@ from .linearize import Linearization, linearize, moved, relinearize, with_replay
 from .probe import suggest_experiments
 from .replays import INPUT_NOISE_SAMPLES, evaluate, replay_and_score
 from .report import Diagnosis, Round, waterfall_step
-from .scatter import failed_joint_scatter
+from .scatter import Scatter, failed_joint_scatter
 from .significance import final_covariances, misfit
 from .thresholds import THRESHOLDS, Thresholds
 from .verdict import verdict
@@ -222,7 +222,7 @@ class _Search:
     stop_reason: str = ""
     replay_error: str = "paired"  # at each accepted and polished model: one of REPLAY_ERROR_MODES
     friction_search: str = ""  # whether the friction was searched at the start, and what was decided (far_friction)
-    scatter: object = None  # the failed joint's scatter columns (scatter.py), where a misfit takes it as noise
+    scatter: Scatter | None = None  # the failed joint's scatter columns, where a misfit takes it as noise
 
     @classmethod
     def begin(cls, lin, evaluator, trials, replayed, held, samples, thresholds) -> "_Search":
