@@ -215,8 +215,20 @@ def look_alikes(row: dict, cell: Cell) -> set:
     return (set(row["accepted"]) | set(row.get("ambiguous_between", []))) - set(cell.expected or ())
 
 
-def table(rows: list, cells: list) -> tuple:
-    """(the markdown table, its one-line summary) over the rows of `cells`."""
+def whole_runs(rows: list, variant: str = "default") -> dict:
+    """Per campaign (cell, seed), the wall seconds of a diagnosis of it run whole and alone: not resumed from a
+    checkpoint (its replays cost nothing), not timed across a pause or beside other work. `variant`'s own where it
+    has one, else another variant's: a variant that replayed only where it parted from another costs about what that
+    one did."""
+    whole = [r for r in rows if not (r.get("resumed") or r.get("paused") or r.get("shared_cpu"))]
+    ordered = sorted(whole, key=lambda r: r.get("variant", "default") == variant)  # the variant's own last: it wins
+    return {(r["cell"], r["seed"]): r["wall_s"] for r in ordered}
+
+
+def table(rows: list, cells: list, timed: dict | None = None) -> tuple:
+    """(the markdown table, its one-line summary) over the rows of `cells`; the minutes from `timed` (whole_runs;
+    by default the rows' own)."""
+    timed = whole_runs(rows) if timed is None else timed
     lines = [
         "| hidden | campaigns | right | wrong effect accepted | ambiguous | unexplained | nothing found | 95% interval "
         "holds the truth | taken for (accepted or tied, not hidden) | trials left unexplained | median min |",
@@ -233,9 +245,7 @@ def table(rows: list, cells: list) -> tuple:
         }
         covered = [c for r in mine for c in r["coverage"]]
         cov = f"{sum(covered)}/{len(covered)}" if covered else "-"
-        # Campaigns run whole and alone: not resumed from a checkpoint (its replays cost nothing), not timed across a
-        # pause or beside other work.
-        whole = [r["wall_s"] for r in mine if not (r.get("resumed") or r.get("paused") or r.get("shared_cpu"))]
+        whole = [timed[k] for r in mine if (k := (r["cell"], r["seed"])) in timed]
         minutes = f"{float(np.median(whole)) / 60:.1f}" if whole else "-"
         left = collections.Counter(t.rsplit("_", 1)[0] for r in mine for t in r.get("unexplained_trials", []))
         left_text = ", ".join(f"{case} {k}" for case, k in left.most_common(3)) or "-"
@@ -291,11 +301,11 @@ def targets(rows: list, cells: list) -> str:
     return "\n".join(lines)
 
 
-def section(rows: list, cells: list, trials_per_case: int, which: str) -> tuple:
+def section(rows: list, cells: list, trials_per_case: int, which: str, timed: dict | None = None) -> tuple:
     """(the table of `rows` with its heading, summary and targets, as markdown; the summary line)."""
     if not rows:
         return f"{which[0].upper()}{which[1:]}: no seed complete yet.", "no seed complete yet"
-    body, summary = table(rows, cells)
+    body, summary = table(rows, cells, timed)
     used = sorted({r["seed"] for r in rows})
     head = (
         f"Measured by `python benchmarks/paper_rates.py --markdown` ({which}; last run {time.strftime('%Y-%m-%d')}; "
@@ -382,12 +392,15 @@ def main():
               f"{row['outcome']} ({row['wall_s'] / 60:.1f} min, {row['simulations']} replays)", flush=True)  # fmt: skip
     if args.variant != "default":
         print(paired(rows, args.variant))
+    timed = whole_runs(rows)
     rows = [r for r in rows if r.get("variant", "default") == "default"]
     chose = [r for r in rows if r["seed"] in CHOSE]
     reported, pending = complete_seeds([r for r in rows if r["seed"] not in CHOSE], cells)
-    text, summary = section(reported, cells, args.trials_per_case, "reported seeds")
+    text, summary = section(reported, cells, args.trials_per_case, "reported seeds", timed)
     text += f"\n\n{pending}" if pending else ""
-    apart, chose_summary = section(chose, cells, args.trials_per_case, "the seeds that chose the decision rules, apart")
+    apart, chose_summary = section(
+        chose, cells, args.trials_per_case, "the seeds that chose the decision rules, apart", timed
+    )
     print(text, apart, sep="\n\n")
     if args.markdown:
         write_block(PAGE, BLOCK, WRITER, text + "\n\n" + apart)

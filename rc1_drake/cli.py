@@ -6,6 +6,7 @@ import argparse
 import contextlib
 import dataclasses
 import json
+import math
 import os
 import sys
 import tempfile
@@ -26,6 +27,7 @@ from .config import (
     Stop,
 )
 from .diagnose import INPUT_NOISE_SAMPLES as DIAGNOSE_NOISE_SAMPLES
+from .diagnose import THRESHOLDS
 from .engine import ENGINES, engine_for, make_session
 from .identify import INPUT_NOISE_SAMPLES
 from .reproduce import PAPER_TRIALS, TIME_LIMIT_S
@@ -80,6 +82,13 @@ def _float(text: str) -> float:
         return float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"'{text}' is not a number") from None
+
+
+def _non_negative(text: str) -> float:
+    value = _float(text)
+    if not (math.isfinite(value) and value >= 0):
+        raise argparse.ArgumentTypeError(f"{text} must be a finite number >= 0")
+    return value
 
 
 def make_parser() -> argparse.ArgumentParser:
@@ -426,6 +435,15 @@ def _add_diagnose(sub) -> None:
         metavar="K",
         help="noisy replays of each trial's noise-free twin, for the replay's own miss and its input "
         f"noise (default {DIAGNOSE_NOISE_SAMPLES})",
+    )
+    dgn.add_argument(
+        "--failed-joint-scatter",
+        type=_non_negative,
+        default=THRESHOLDS.max_failed_joint_scatter,
+        metavar="STEPS",
+        help="the largest trial-to-trial scatter of a failed joint (probe steps of its constant torque, spring and "
+        "viscous torque) taken as noise: another model's failed joint swings differently in each trial; beyond "
+        f"it the failed joints show a law, not a scatter (default {THRESHOLDS.max_failed_joint_scatter:g}; 0: never)",
     )
     dgn.add_argument(
         "--no-probe-study",
@@ -961,6 +979,7 @@ def cmd_diagnose(args) -> int:
         start_rates=args.start_rates,
         checkpoint=checkpoint,
         on_round=keep_round,
+        thresholds=dataclasses.replace(THRESHOLDS, max_failed_joint_scatter=args.failed_joint_scatter),
     )
     print(result.format())
     note = f"rc1 diagnose {campaign.path}: {result.verdict}"

@@ -1,5 +1,6 @@
 """The rc1 command: outputs on success, one-line errors on bad input."""
 
+import dataclasses
 import json
 import subprocess
 import sys
@@ -7,6 +8,8 @@ import sys
 import pytest
 
 from rc1_drake.cli import main
+from rc1_drake.config import Friction
+from rc1_drake.diagnose import THRESHOLDS
 
 
 def test_run_writes_summary_json_and_plot(tmp_path, capsys):
@@ -43,6 +46,8 @@ def test_run_writes_summary_json_and_plot(tmp_path, capsys):
         (["diagnose", "data/paper_campaign", "--candidates", "wind"], "unknown effect 'wind'"),
         (["diagnose", "data/paper_campaign", "--trials", "nominal_9"], "nominal_9"),
         (["diagnose", "data/paper_campaign", "--model-file", "/nonexistent.yaml"], "/nonexistent.yaml"),
+        (["diagnose", "data/paper_campaign", "--failed-joint-scatter", "-1"], "-1 must be a finite number >= 0"),
+        (["diagnose", "data/paper_campaign", "--failed-joint-scatter", "inf"], "inf must be a finite number >= 0"),
         pytest.param(["reproduce", "--joints", "2,14"], "joint 14 does not exist", id="reproduce-joints"),
         pytest.param(["reproduce", "--trials", "0"], "0 must be at least 1", id="reproduce-trials"),
         pytest.param(
@@ -112,3 +117,28 @@ def test_an_output_that_cannot_be_written_is_refused_before_any_work(tmp_path, c
     assert main(argv) == 2  # at once: a diagnosis or an identification would take minutes first
     err = capsys.readouterr().err
     assert f"{option} {target}" in err and "cannot write there" in err and err.count("\n") == 1
+
+
+@pytest.mark.parametrize("given, taken", [([], THRESHOLDS.max_failed_joint_scatter), (["0"], 0.0), (["2.5"], 2.5)])
+def test_the_failed_joints_scatter_bound_reaches_the_diagnosis(given, taken, tmp_path, monkeypatch):
+    """rc1 diagnose --failed-joint-scatter STEPS sets that one threshold, the others left at their defaults."""
+    import rc1_drake.diagnose as diagnose_package
+
+    seen = {}
+
+    class Diagnosed:
+        verdict, friction, effects, trials = "no_missing_effect", Friction(), {}, []
+        simulations, resumed, wall_s = 0, 0, 0.0
+
+        def format(self):
+            return "verdict: no_missing_effect"
+
+    def diagnose(*args, thresholds, **kwargs):
+        seen["thresholds"] = thresholds
+        return Diagnosed()
+
+    monkeypatch.setattr(diagnose_package, "diagnose", diagnose)
+    option = ["--failed-joint-scatter", *given] if given else []
+    argv = ["diagnose", "data/paper_campaign", "--out", str(tmp_path / "m.yaml"), "--checkpoint", str(tmp_path / "c")]
+    assert main([*argv, *option]) == 0
+    assert seen["thresholds"] == dataclasses.replace(THRESHOLDS, max_failed_joint_scatter=taken)
