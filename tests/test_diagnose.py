@@ -777,3 +777,28 @@ def test_the_paper_rates_table_counts_a_seed_only_once_every_cell_is_diagnosed(m
     assert counted == whole[:2]  # the shown cells of the complete seed: a seed with every shown cell still waits
     assert note == f"Not yet counted, in progress: seed 103 (2 of {len(grid)} cells)."
     assert paper_rates.complete_seeds(whole, grid) == (whole, "")
+
+
+def test_the_paper_rates_minutes_are_a_whole_run_of_the_campaign_under_any_variant(monkeypatch):
+    """A variant replays only where it parts from another's checkpoint: its minutes are that whole run's, its own
+    whole run's where it has one, and never a run resumed, paused or timed beside other work."""
+    monkeypatch.syspath_prepend(str(REPO / "benchmarks"))
+    paper_rates = importlib.import_module("paper_rates")
+
+    def row(seed, variant, wall_s, **flags):
+        return {"cell": "none", "seed": seed, "variant": variant, "wall_s": wall_s, **flags}
+
+    rows = [
+        row(102, "other", 300.0),
+        row(102, "default", 20.0, resumed=500),
+        row(103, "other", 250.0),
+        row(103, "default", 200.0),
+        row(104, "other", 900.0, shared_cpu=True),
+        row(104, "default", 30.0, resumed=400),
+        row(105, "default", 99.0, paused=True),
+    ]
+    assert paper_rates.whole_runs(rows) == {("none", 102): 300.0, ("none", 103): 200.0}
+    defaults = [{**r, "outcome": "right", "coverage": [], "accepted": []} for r in rows if r["variant"] == "default"]
+    body, _ = paper_rates.table(defaults, paper_rates.CELLS, paper_rates.whole_runs(rows))
+    assert body.splitlines()[2].endswith(f"| {(300.0 + 200.0) / 2 / 60:.1f} |")  # the median of 102's and 103's
+    assert paper_rates.table(defaults, paper_rates.CELLS)[0].splitlines()[2].endswith(f"| {200.0 / 60:.1f} |")
