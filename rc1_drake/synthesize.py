@@ -6,6 +6,7 @@ extra physical effects, trial-to-trial variation (start phase and pose) and sens
 comes from one seed.
 """
 
+import collections
 import dataclasses
 import json
 import math
@@ -146,16 +147,17 @@ def synthesize_campaign(
     rng = np.random.default_rng(seed)
     numerics = dataclasses.replace(numerics or Numerics(), log_period_s=sample_period_s)
     folder = Path(folder)
-    trials, sessions = [], {}
+    trials, sessions, numbered = [], {}, collections.Counter()
     for case in design:
         _check_within_servos(case)
     for case in design:
-        for k in range(case.trials):
-            label = (
-                ("j" + "_".join(map(str, case.failed_joints)) if case.failed_joints else "nominal")
-                + ("_bias" if case.bias_deg else "")
-                + (f"_f{case.gait.frequency_deg_s:g}_p{case.gait.phase_step_deg:g}" if case.gait else "")
-            )
+        label = (
+            ("j" + "_".join(map(str, case.failed_joints)) if case.failed_joints else "nominal")
+            + ("_bias" if case.bias_deg else "")
+            + (f"_f{case.gait.frequency_deg_s:g}_p{case.gait.phase_step_deg:g}" if case.gait else "")
+        )
+        for _ in range(case.trials):
+            numbered[label] += 1  # cases sharing a label (a bias each way) number on: no trial overwrites another
             scenario = Scenario(
                 gait=dataclasses.replace(
                     case.gait or Gait(),
@@ -178,7 +180,7 @@ def synthesize_campaign(
             else:
                 run, scenario = _drake_run(scenario, record_after_s, sessions)
             on_grid = np.abs(run.t / sample_period_s - np.round(run.t / sample_period_s)) < 1e-6  # not the stop
-            trial = _measure(run, scenario, f"{label}_{k + 1}", noise, rng, camera, run.t[on_grid])
+            trial = _measure(run, scenario, f"{label}_{numbered[label]}", noise, rng, camera, run.t[on_grid])
             write_trial(folder, trial.trial_id, trial)
             trials.append(trial)
     if truth_file is not None:

@@ -90,6 +90,18 @@ def test_synthesize_command_refuses_to_overwrite(tmp_path, capsys):
     assert "already exists" in capsys.readouterr().err
 
 
+def test_cases_sharing_a_label_number_on_and_every_trial_is_kept(tmp_path):
+    """Turning both ways is two cases with one label (nominal_bias): the second numbers on from the first, so no
+    trial overwrites another, and each keeps its own bias."""
+    campaign = synthesize_campaign(
+        tmp_path / "c",
+        design=[Case([], 1, bias_deg=4.0), Case([], 2, bias_deg=-4.0)],
+        stop=Stop(line_x_m=None, revolutions=None, time_limit_s=0.2),
+    )
+    loaded = {t.trial_id: t.gait.bias_deg for t in load_campaign(campaign.path).trials}
+    assert loaded == {"nominal_bias_1": 4.0, "nominal_bias_2": -4.0, "nominal_bias_3": -4.0}
+
+
 def test_a_replay_reaches_the_line_its_data_ended_just_before(tmp_path):
     """Data end at the last sample before the line: the replay may run a few periods past them to cross it. The
     trial is made by reference.py without noise, so that the replay itself lands within a sample of the truth."""

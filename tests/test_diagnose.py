@@ -802,3 +802,29 @@ def test_the_paper_rates_minutes_are_a_whole_run_of_the_campaign_under_any_varia
     body, _ = paper_rates.table(defaults, paper_rates.CELLS, paper_rates.whole_runs(rows))
     assert body.splitlines()[2].endswith(f"| {(300.0 + 200.0) / 2 / 60:.1f} |")  # the median of 102's and 103's
     assert paper_rates.table(defaults, paper_rates.CELLS)[0].splitlines()[2].endswith(f"| {200.0 / 60:.1f} |")
+
+
+def test_the_probe_kind_that_tells_two_candidates_apart_sees_what_neither_mimics():
+    """probe.telling_apart on hand-made columns: a kind where the two are parallel never tells them apart; of the
+    others, the one where the part each cannot mimic is seen soonest, relative to where each is seen at all."""
+    from rc1_drake.diagnose.probe import apart_strengths, telling_apart
+
+    a, b = np.array([[3.0], [4.0]]), np.array([[1.0], [0.0]])
+    assert apart_strengths(a, b) == pytest.approx([3.0 / 4.0])  # a's part orthogonal to b: (0, 4)
+    assert apart_strengths(b, 2 * b) == [math.inf]
+
+    def kind(cols_a, cols_b):
+        cols_a, cols_b = np.array(cols_a, float), np.array(cols_b, float)
+        return {
+            n: {"columns": c, "detectable_strength": {f"{n}_x": 3.0 / float(np.linalg.norm(c))}}
+            for n, c in (("a", cols_a), ("b", cols_b))
+        }
+
+    study = {
+        "parallel, seen best": kind([[30.0], [0.0]], [[0.0 + 60.0], [0.0]]),
+        "apart, seen weakly": kind([[0.0], [0.1]], [[0.1], [0.0]]),
+        "apart, seen well": kind([[3.0], [3.0]], [[3.0], [0.0]]),
+    }
+    chosen, strengths = telling_apart(study, "a", "b")
+    assert chosen == "apart, seen well"
+    assert strengths == pytest.approx({"a_x": 1.0, "b_x": 3.0 / (3.0 / math.sqrt(2))})
