@@ -149,7 +149,7 @@ def telling_apart(study: dict, a: str, b: str):
     cannot mimic is detectable}), or None. Best: the smallest, over the kinds, of the larger of the two candidates'
     apart strengths, each relative to the strength at which its best kind detects it at all (units cancel; a kind
     that sees neither is never chosen for the angle between them alone)."""
-    kinds = [k for k in study if np.linalg.norm(study[k][a]["columns"]) > 0 and np.linalg.norm(study[k][b]["columns"])]
+    kinds = [k for k in study if min(np.linalg.norm(study[k][n]["columns"]) for n in (a, b)) > 0]
     if not kinds:
         return None
     best = {n: min(min(study[k][n]["detectable_strength"].values()) for k in kinds) for n in (a, b)}
