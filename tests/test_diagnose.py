@@ -461,8 +461,8 @@ TURNING = [Case([], 2), Case([], 1, bias_deg=4.0), Case([], 1, bias_deg=-4.0)]
 # A failed joint's dry friction has a threshold (docs/diagnosis.md): 3 s trials, where 2 s ones tie it with a
 # longitudinal asymmetry. It is accepted at 0.40 (two trust steps) and estimated further once accepted (0.60 +- 0.05
 # (se)).
-# A lateral asymmetry needs the turning trials; at 0.5 on them it is ranked first but ties with a toe or a head
-# drag (docs/diagnosis.md: `ambiguous` on seeds 0-2), at 0.8 it is found (0.81 +- 0.02 (se); head drag 39% linear).
+# A lateral asymmetry needs turning trials: on one (-4 deg) at 0.8 it was found (0.81 +- 0.02 (se)); on both ways it
+# is not detectable (the synthesizer had overwritten the +4 deg trial until 2026-11-28: docs/findings.md).
 # (A head drag on circling joint-2 trials was found here while the plant clamped the replays' servos at
 # 1.19 N m; with replays that follow the measured angles it is not detectable at 0.5-1.0 on 2-3 s trials.)
 @pytest.mark.slow
@@ -471,7 +471,21 @@ TURNING = [Case([], 2), Case([], 1, bias_deg=4.0), Case([], 1, bias_deg=-4.0)]
     [
         ("wheel_toe", "wheel_toe_deg", 1.5, DESIGN, 11, SECONDS),
         ("joint_coulomb_friction", "joint_coulomb_Nm", 0.6, DESIGN, 0, 3.0),
-        ("lateral_friction_asymmetry", "lateral_friction_asymmetry", 0.8, TURNING, 0, 3.0),
+        pytest.param(
+            "lateral_friction_asymmetry",
+            "lateral_friction_asymmetry",
+            0.8,
+            TURNING,
+            0,
+            3.0,
+            marks=pytest.mark.xfail(
+                strict=True,
+                reason=(
+                    "measured with both turning trials (before 2026-11-28 the synthesizer overwrote the +4 deg one): "
+                    "0.8 +- 0.83, not detectable, a head drag first; with one -4 deg trial found (docs/findings.md)"
+                ),
+            ),
+        ),  # fmt: skip
     ],
 )
 def test_a_visible_hidden_effect_is_ranked_first_accepted_and_recovered(
