@@ -215,13 +215,13 @@ def look_alikes(row: dict, cell: Cell) -> set:
     return (set(row["accepted"]) | set(row.get("ambiguous_between", []))) - set(cell.expected or ())
 
 
-def whole_runs(rows: list, variant: str = "default") -> dict:
+def whole_runs(rows: list) -> dict:
     """Per campaign (cell, seed), the wall seconds of a diagnosis of it run whole and alone: not resumed from a
-    checkpoint (its replays cost nothing), not timed across a pause or beside other work. `variant`'s own where it
+    checkpoint (its replays cost nothing), not timed across a pause or beside other work. The default's own where it
     has one, else another variant's: a variant that replayed only where it parted from another costs about what that
     one did."""
     whole = [r for r in rows if not (r.get("resumed") or r.get("paused") or r.get("shared_cpu"))]
-    ordered = sorted(whole, key=lambda r: r.get("variant", "default") == variant)  # the variant's own last: it wins
+    ordered = sorted(whole, key=lambda r: r.get("variant", "default") == "default")  # the default's last: it wins
     return {(r["cell"], r["seed"]): r["wall_s"] for r in ordered}
 
 

@@ -485,7 +485,7 @@ TURNING = [Case([], 2), Case([], 1, bias_deg=4.0), Case([], 1, bias_deg=-4.0)]
                     "0.8 +- 0.83, not detectable, a head drag first; with one -4 deg trial found (docs/findings.md)"
                 ),
             ),
-        ),  # fmt: skip
+        ),
     ],
 )
 def test_a_visible_hidden_effect_is_ranked_first_accepted_and_recovered(
@@ -835,7 +835,7 @@ def test_the_probe_kind_that_tells_two_candidates_apart_sees_what_neither_mimics
         }
 
     study = {
-        "parallel, seen best": kind([[30.0], [0.0]], [[0.0 + 60.0], [0.0]]),
+        "parallel, seen best": kind([[30.0], [0.0]], [[60.0], [0.0]]),
         "apart, seen weakly": kind([[0.0], [0.1]], [[0.1], [0.0]]),
         "apart, seen well": kind([[3.0], [3.0]], [[3.0], [0.0]]),
     }
