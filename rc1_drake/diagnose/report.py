@@ -177,7 +177,7 @@ class Diagnosis:
         lines = [
             f"verdict: {self.verdict}: {self.explanation}",
             rate_text(self.verdict),
-            f"added: {', '.join(added) or 'nothing'} (95%)",
+            f"added: {', '.join(added) + ' (95%)' if added else 'nothing'}",
         ]
         if self.waterfall:
             first, last = self.waterfall[0], self.waterfall[-1]
