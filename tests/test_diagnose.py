@@ -32,7 +32,6 @@ from rc1_drake.diagnose.linearize import (
     Linearization,
     linearize,
     relinearize,
-    tangent_names,
     trial_weights,
     with_replay_error,
 )
@@ -588,33 +587,6 @@ def test_a_paired_replay_error_at_the_same_model_is_the_full_one(tmp_path):
     other = dataclasses.replace(Friction(), mu_lat=1.0)
     elsewhere = relinearize(full, other, {}, evaluator, samples=samples, paired=True)
     assert np.linalg.norm(elsewhere.bias[0] - full.bias[0]) > 0
-
-
-def test_tangent_columns_follow_the_probe_steps_and_a_trial_they_miss_takes_probe_steps(tmp_path, monkeypatch):
-    """The replays' exact sensitivities as columns: the residuals are the probe-step linearization's; a smooth
-    coordinate's column is near its probe step's secant; an effect marked otherwise (the lateral asymmetry) and the
-    check coordinate keep their secants exactly; and where the check fails every column is a probe step's."""
-    campaign = _campaign(tmp_path, {}, design=[Case([], 1), Case([7], 1)], seconds=1.0)
-    evaluator, names = Evaluator(None), ["wheel_toe", "lateral_friction_asymmetry"]
-    args = (campaign.trials, Friction(), {}, names, evaluator)
-    secant = linearize(*args, noise=[np.zeros((1, 1))] * 2)
-    tangent = linearize(*args, noise=[np.zeros((1, 1))] * 2, columns="tangent")
-    # 2 replays and 13 probe steps (7 coordinates, c_joint moving J7's only); then 2 tangent replays, and probe
-    # steps of the lateral asymmetry and of the check coordinate (mu_lat) on both trials
-    assert evaluator.simulations == 15 + 2 + 4
-    for a, b in zip(secant.r0, tangent.r0, strict=True):
-        np.testing.assert_allclose(a, b, atol=1e-9)
-    assert tangent_names(tangent.coordinates) == ["c_joint", "mu_lat", "mu_long", "c_lat", "c_long", "wheel_toe_deg"]
-    for name, most in (("wheel_toe_deg", 0.3), ("mu_long", 0.3), ("lateral_friction_asymmetry", 0.0), ("mu_lat", 0.0)):
-        for k in range(2):
-            off = np.linalg.norm(tangent.columns[name][k] - secant.columns[name][k])
-            assert off <= most * np.linalg.norm(secant.columns[name][k]), (name, k)
-    assert np.linalg.norm(tangent.columns["wheel_toe_deg"][0] - secant.columns["wheel_toe_deg"][0]) > 0
-    monkeypatch.setattr(importlib.import_module("rc1_drake.diagnose.linearize"), "TANGENT_AGREEMENT", 0.0)
-    fallback = linearize(*args, noise=[np.zeros((1, 1))] * 2, columns="tangent")
-    for name in secant.columns:
-        for a, b in zip(secant.columns[name], fallback.columns[name], strict=True):
-            np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-12)
 
 
 # On these short trials a hidden head drag is explained about as well by a tilt or a longitudinal asymmetry,

@@ -8,16 +8,13 @@ import numpy as np
 
 from ..compare import simulator_error
 from ..config import RESIDUAL_SIGMAS, Friction
-from ..effects import LIBRARY, active
-from ..engine import default_engine
-from ..engine.session import sensitivity_parameters
+from ..effects import active
 from ..replay import with_start_guess
 from ..sysid.evaluate import Evaluator
 from ..sysid.input_noise import bootstrap_draw, bootstrap_twin, draws_mean_and_covariance
 from ..sysid.parameters import Parameter
 from ..sysid.residual import residual_channels
 from .coordinates import (
-    START,
     acts_in_failed_joints_only,
     coordinate_values,
     effect_coordinates,
@@ -27,7 +24,7 @@ from .coordinates import (
     start_coordinates,
     starts_at,
 )
-from .replays import INPUT_NOISE_SAMPLES, evaluate, evaluate_with_tangent
+from .replays import INPUT_NOISE_SAMPLES, evaluate
 
 FINAL_SIGMA_M = RESIDUAL_SIGMAS["final_m"]
 # Draws a paired measurement of the replay's own error repeats (same noise as the full one's first draws): the bias
@@ -140,47 +137,37 @@ def linearize(
     input_noise_samples=INPUT_NOISE_SAMPLES,
     held=(),
     starts=False,
-    columns="secant",
 ) -> Linearization:
-    """Residuals at (friction, effects) and their columns for the friction coefficients, the model's own effects
-    and the candidates (and with `starts`, each trial's start: start_coordinates); when `noise` is None, the
-    replays' own error (replay_error: their bias, taken off r0, and the input noise). `columns`: "secant", each a
-    forward difference over its coordinate's probe step; "tangent", the replays' exact sensitivities where the
-    effect allows (tangent_names), checked against one probe step per trial (a trial where they disagree takes
-    probe steps)."""
+    """Residuals at (friction, effects) and their forward-difference columns for the friction
+    coefficients, the model's own effects and the candidates (and with `starts`, each trial's start:
+    start_coordinates); when `noise` is None, the replays' own error (replay_error: their bias, taken off r0,
+    and the input noise)."""
     if starts:  # linearized at the trials' own rates, else the protocol's with the IMU's first yaw rate
         trials = [with_start_guess(t) for t in trials]
     coords = (start_coordinates(trials) if starts else []) + friction_coordinates(friction, held)
     for name in list(dict.fromkeys([*(e.name for e in active(effects)), *candidates])):
         coords += effect_coordinates(name, effects)
-    tangent = tangent_names(coords) if columns == "tangent" else []
-    if tangent:
-        exact = evaluator.map(
-            evaluate_with_tangent, [(t, friction, effects, tuple(tangent)) for t in trials], "residuals and tangents"
-        )
-        base = [e[0] for e in exact]
-    else:
-        base = evaluator.map(evaluate, [(t, friction, effects) for t in trials], "residuals at the model")
-    check = next((n for n in tangent if not acts_in_failed_joints_only(_named(coords, n))), None)
-    secant = [(c.name, k) for c in coords if c.name not in tangent or c.name == check for k in range(len(trials))]
-    outputs = _probe_steps(trials, friction, effects, coords, secant, evaluator, "linearizing at the model")
-    columns = {c.name: [np.zeros(len(b[0])) for b in base] for c in coords}
-    wcolumns = {c.name: [np.zeros(len(b[3])) for b in base] for c in coords}
-    for k in range(len(trials)):
-        for j, name in enumerate(tangent):
-            columns[name][k], wcolumns[name][k] = exact[k][1][:, j], exact[k][2][:, j]
-    # A trial whose tangent is not what a probe step does (a chaotic replay: a joint-2 failure's, measured 3-34
-    # times) takes every column by probe steps.
-    chaotic = [k for k in range(len(trials)) if check and _far_from_tangent(outputs, base, check, k, columns, coords)]
-    again = [(n, k) for n in tangent if n != check for k in chaotic]
-    outputs |= _probe_steps(trials, friction, effects, coords, again, evaluator, "probe steps of chaotic trials")
-    for (name, k), o in outputs.items():  # residuals have the trial's entries at every model
-        step = signed_step(_named(coords, name))
-        columns[name][k] = (o[0] - base[k][0]) / step
-        wcolumns[name][k] = (o[3] - base[k][3]) / step
+    base = evaluator.map(evaluate, [(t, friction, effects) for t in trials], "residuals at the model")
+    jobs, where = [], []
+    for c in coords:
+        values = [c2.value + (signed_step(c) if c2 is c else 0.0) for c2 in coords]
+        model = model_at(friction, effects, coords, values)
+        for k, t in enumerate(trials):
+            if c.start_of is not None and c.start_of[0] != k:
+                continue  # another trial's start: this trial's replay is base's exactly
+            if t.failed_joints or not acts_in_failed_joints_only(c):  # else the replay is base's exactly
+                jobs.append((starts_at(trials, coords, values)[k] if c.start_of else t, *model))
+                where.append((c.name, k))
+    outputs = evaluator.map(evaluate, jobs, f"linearizing at the model ({len(coords)} directions)")
     bias = start_bias = draws = None
     if noise is None:
         bias, noise, start_bias, draws = replay_errors(trials, friction, effects, evaluator, input_noise_samples)
+    columns = {c.name: [np.zeros(len(b[0])) for b in base] for c in coords}
+    wcolumns = {c.name: [np.zeros(len(b[3])) for b in base] for c in coords}
+    for (name, k), o in zip(where, outputs, strict=True):  # residuals have the trial's entries at every model
+        step = signed_step(next(c for c in coords if c.name == name))
+        columns[name][k] = (o[0] - base[k][0]) / step
+        wcolumns[name][k] = (o[3] - base[k][3]) / step
     lin = Linearization(
         trials=list(trials),
         friction=friction,
@@ -200,54 +187,6 @@ def linearize(
     lin.r0 = [lin.corrected(k, r) for k, r in enumerate(lin.r0)]
     lin.w0 = [lin.start_corrected(k, w) for k, w in enumerate(lin.w0)]
     return lin
-
-
-COLUMN_MODES = ("secant", "tangent")
-TANGENT_AGREEMENT = 1.0  # a trial's tangent column is off its probe step's secant by more than this: not used
-
-
-def tangent_names(coords) -> list[str]:
-    """The coordinates a replay's exact sensitivities give a column of (the compiled engine's, where the effect's
-    response over a probe step is near its tangent: effects.Effect.tangent_columns); not the trials' starts."""
-    if default_engine() != "compiled":
-        return []
-    known = sensitivity_parameters()
-    return [
-        c.name
-        for c in coords
-        if c.name in known and c.owner != START and (c.owner == "friction" or LIBRARY[c.owner].tangent_columns)
-    ]
-
-
-def _named(coords, name):
-    return next(c for c in coords if c.name == name)
-
-
-def _probe_steps(trials, friction, effects, coords, which, evaluator, what) -> dict:
-    """{(coordinate name, trial index): evaluate at the coordinate's probe step} for the (name, k) in `which` that
-    move trial k's replay (another trial's start, a failed joint's term on an intact trial do not)."""
-    jobs, where = [], []
-    for name in dict.fromkeys(n for n, _ in which):
-        c = _named(coords, name)
-        values = [c2.value + (signed_step(c) if c2 is c else 0.0) for c2 in coords]
-        model = model_at(friction, effects, coords, values)
-        for k in [k for n, k in which if n == name]:
-            if c.start_of is not None and c.start_of[0] != k:
-                continue
-            if trials[k].failed_joints or not acts_in_failed_joints_only(c):
-                jobs.append((starts_at(trials, coords, values)[k] if c.start_of else trials[k], *model))
-                where.append((c.name, k))
-    directions = len({name for name, _ in where})
-    return dict(zip(where, evaluator.map(evaluate, jobs, f"{what} ({directions} directions)"), strict=True))
-
-
-def _far_from_tangent(outputs, base, name, k, columns, coords) -> bool:
-    """Whether trial k's tangent column of `name` is off its probe step's secant by more than TANGENT_AGREEMENT
-    of the secant."""
-    if (name, k) not in outputs:
-        return False
-    secant = (outputs[name, k][0] - base[k][0]) / signed_step(_named(coords, name))
-    return bool(np.linalg.norm(columns[name][k] - secant) > TANGENT_AGREEMENT * np.linalg.norm(secant))
 
 
 def replay_errors(trials, friction, effects, evaluator: Evaluator, samples: int, paired_with=None) -> tuple:

@@ -17,7 +17,7 @@ from ..sysid.stats import interval95
 from .coordinates import START, physics_names
 from .decide import NOT_DETECTABLE, decide, held_out_by_simulation, rank, screen_friction, unrefitted
 from .fit import fit, polish, starts_fitted
-from .linearize import COLUMN_MODES, Linearization, linearize, moved, relinearize, with_replay_error
+from .linearize import Linearization, linearize, moved, relinearize, with_replay_error
 from .probe import suggest_experiments
 from .replays import INPUT_NOISE_SAMPLES, evaluate, replay_and_score
 from .report import Diagnosis, Round, waterfall_step
@@ -52,7 +52,6 @@ def diagnose(
     checkpoint=None,
     on_round=None,
     replay_error="paired",
-    columns="secant",
 ) -> Diagnosis:
     """The loop (the package's docstring) on `campaign` (its `trials`, all by default), from the model (`friction`,
     `effects`); `candidates` are effect names or groups (effects.candidate_names; by default the physical effects,
@@ -66,15 +65,12 @@ def diagnose(
     polished one moved from the accepted model's by the paired difference of its first draws ("paired":
     linearize.PAIRED_DRAWS of six, docs/diagnosis.md); measured again in full there too ("full"); or the start's
     kept ("start"). The others are judged against the default campaign by campaign (benchmarks/paper_rates.py
-    --variant). `columns`: how the model is linearized (linearize.COLUMN_MODES: "secant", a probe step per
-    coordinate; "tangent", the replays' exact sensitivities where they describe a probe step)."""
+    --variant)."""
     started = time.perf_counter()
     if start_rates not in START_MODES:
         raise ValueError(f"start_rates must be one of {START_MODES}, got {start_rates!r}")
     if replay_error not in REPLAY_ERROR_MODES:
         raise ValueError(f"replay_error must be one of {REPLAY_ERROR_MODES}, got {replay_error!r}")
-    if columns not in COLUMN_MODES:
-        raise ValueError(f"columns must be one of {COLUMN_MODES}, got {columns!r}")
     friction, effects, chosen = friction or Friction(), dict(effects or {}), campaign.chosen(trials)
     replayed, unseen = _candidates(chosen, effects, candidates)
     with make_executor(workers=workers or min(os.cpu_count() or 1, len(chosen)), scheduler=scheduler) as executor:
@@ -89,9 +85,8 @@ def diagnose(
             input_noise_samples=input_noise_samples,
             held=held,
             starts=fit_starts,
-            columns=columns,
         )
-        search = _Search.begin(lin, evaluator, chosen, replayed, held, input_noise_samples, thresholds, columns)
+        search = _Search.begin(lin, evaluator, chosen, replayed, held, input_noise_samples, thresholds)
         search.replay_error = replay_error
         search.stop_reason = f"{max_rounds} rounds"
         for index in range(max_rounds):
@@ -230,7 +225,7 @@ class _Search:
     scatter: Scatter | None = None  # the failed joint's scatter columns, where a misfit takes it as noise
 
     @classmethod
-    def begin(cls, lin, evaluator, trials, replayed, held, samples, thresholds, columns) -> "_Search":
+    def begin(cls, lin, evaluator, trials, replayed, held, samples, thresholds) -> "_Search":
         """The search at the start: the friction these data identify (where none is at the start and its replays
         miss by more than the noise, judged again where a search of the friction goes, if the friction explains that
         miss better than a candidate does: needs_friction_search, far_friction), the trials' starts fitted with it."""
@@ -256,7 +251,7 @@ class _Search:
             found, note = far_friction(lin, names, nuisance, replayed, evaluator, thresholds, samples)
         if found is not None:  # linearized again where the search went, and judged there
             lin = linearize(lin.trials, found, lin.effects, replayed, evaluator, input_noise_samples=samples,
-                            held=held, starts=bool(nuisance), columns=columns)  # fmt: skip
+                            held=held, starts=bool(nuisance))  # fmt: skip
             free = screen_friction(lin, names, nuisance=nuisance)
             lin = starts_fitted(lin, nuisance, free, evaluator)
             waterfall.append(waterfall_step(FAR_LABEL, unrefitted(lin, FAR_LABEL), trials))

@@ -90,9 +90,6 @@ class Effect:
     # False: it changes the chain's masses or the gait command, which the compiled engine's sensitivities
     # (engine/session.py) do not follow; its derivatives are taken by finite differences of runs.
     differentiable: bool = True
-    # False: over its probe step the residuals are far from their tangent at 0 (measured: docs/findings.md), so a
-    # diagnosis linearized by tangents (diagnose.linearize, columns="tangent") takes its columns by probe steps.
-    tangent_columns: bool = True
     failed_joints_only: bool = False  # True: it acts only in failed joints (a trial without one is unchanged)
     sensor: bool = False  # True: a measurement fault (the robot is the paper's; what its sensors report is not)
     # False: a candidate only when asked for (by name, or the `study` group): a mechanism whose rate in the

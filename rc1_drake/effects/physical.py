@@ -52,7 +52,6 @@ class GroundSlope(Effect):
 class LateralFrictionAsymmetry(Effect):
     name = "lateral_friction_asymmetry"
     summary = "the lateral Coulomb coefficient is mu_lat (1 + a) sliding left, mu_lat (1 - a) sliding right"
-    tangent_columns = False  # its probe step's secant is 0.2-2.4 times off the tangent (findings 2026-11-28)
     parameters = (EffectParameter("lateral_friction_asymmetry", -0.9, 0.9, probe=0.2),)
 
     def configure(self, setup, values):
@@ -142,7 +141,6 @@ class TailTether(Effect):
 class StribeckFriction(Effect):
     name = "stribeck_friction"
     summary = "lateral breakaway friction: mu_lat (1 + r exp(-(v/v_s)^2)) at low slip speed"
-    tangent_columns = False  # its probe step's secant is 0.2-2.4 times off the tangent (findings 2026-11-28)
     parameters = (
         EffectParameter("stribeck_ratio", 0.0, 3.0, probe=0.5),
         EffectParameter("stribeck_speed_m_s", 1e-3, 0.2, fitted=False, default=0.01),
