@@ -77,11 +77,12 @@ def rank(
         values = effect.coordinates(effect_values(lin.effects, effect))
         values.update({n: float(fitted.values[i]) for n, i in zip(own, idx, strict=True)})
         se = {n: float(fitted.standard_errors[i]) for n, i in zip(own, idx, strict=True)}
+        seen_se = fitted.noise_standard_errors if thresholds.detectable_by_noise else fitted.standard_errors
         p = wald_p(fitted, own)
         reduction = 1.0 - (after / before) ** 2 if before > 0 else 0.0
-        detectable = {n: 3.0 * se[n] for n in own}
+        detectable = {n: 3.0 * float(seen_se[i]) for n, i in zip(own, idx, strict=True)}
         visible = (
-            any(3.0 * se[n] < max(abs(c.lower), abs(c.upper)) for n, c in zip(own, coords, strict=True))
+            any(detectable[n] < max(abs(c.lower), abs(c.upper)) for n, c in zip(own, coords, strict=True))
             and np.linalg.norm(projected[name]) > 1e-9
         )
         if not visible:

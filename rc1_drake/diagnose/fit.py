@@ -34,6 +34,9 @@ class Fit:
     steps: np.ndarray  # d from the linearization point
     standard_errors: np.ndarray
     covariance: np.ndarray
+    # the sandwich's alone (the noise's), where the trial jackknife took the physics' block: how well the noise lets
+    # a coordinate be seen, whether or not the trials agree on the linear model
+    noise_standard_errors: np.ndarray
     residual: list[np.ndarray]  # per trial, r0 + X d (linear prediction, all trials)
     held_out: list[np.ndarray]  # per trial, the prediction from the fit without that trial
     held_out_steps: list[np.ndarray]  # per trial, d fitted without it
@@ -154,6 +157,7 @@ def fit(lin: Linearization, names: list[str]) -> Fit:
         _fit_own_start(lin, coords, k, dk, lower, upper)  # its start is its own: fitted to it, physics held
         held.append(lin.r0[k] + lin.rows(names, [k])[0] @ dk)
         held_steps.append(dk)
+    noise_se = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     if len(everything) >= 3 and physics:  # a trial's start is its own: no jackknife
         # The jackknife sees what the sandwich assumes away: correlated residuals within a trial (docs/diagnosis.md).
         steps = np.array(held_steps)[:, physics]
@@ -170,6 +174,7 @@ def fit(lin: Linearization, names: list[str]) -> Fit:
         steps=d,
         standard_errors=se,
         covariance=cov,
+        noise_standard_errors=noise_se,
         residual=per_trial,
         held_out=held,
         held_out_steps=held_steps,
