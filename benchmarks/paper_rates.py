@@ -62,7 +62,8 @@ VARIANTS = {
     "full-replay-error": {"replay_error": "full"},
     # The default before 2026-11-28: the failed joint's scatter never taken as noise (diagnose/scatter.py).
     "no-failed-joint-scatter": {"thresholds": Thresholds(max_failed_joint_scatter=0.0)},
-    "detectable-by-noise": {"thresholds": Thresholds(detectable_by_noise=True)},
+    # The default before 2026-11-28 (16): detectability by the trial jackknife's standard errors where larger.
+    "detectable-by-jackknife": {"thresholds": Thresholds(detectable_by_noise=False)},
 }
 
 

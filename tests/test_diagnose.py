@@ -141,6 +141,24 @@ def test_fit_recovers_a_linear_truth_and_its_held_out_predictions_are_exact():
     assert only_a.held_out_sum_of_squares() > 1.0  # the missing column shows on held-out trials
 
 
+def test_trials_that_disagree_widen_the_interval_by_the_jackknife_but_not_the_noises_standard_error():
+    """Three trials say b = 1, a fourth says b = -3, each within noise 0.05: the jackknife over trials sees the
+    disagreement as a trial's, the sandwich (rows independent) as rows' scatter only. The interval takes the
+    jackknife; how well the noise lets b be seen (Thresholds.detectable_by_noise) the sandwich. Trials that agree:
+    the two are one."""
+    rng = np.random.default_rng(3)
+    a, b = rng.normal(size=(4, 12)), rng.normal(size=(4, 12))
+    noise = 0.05 * rng.normal(size=(4, 12))
+    says = np.array([1.0, 1.0, 1.0, -3.0])
+    lin = _linearization({"a": list(a), "b": list(b)}, list(-says[:, None] * b + noise), noise_sd=0.05)
+    split = fit(lin, ["b"])
+    assert split.standard_errors[0] > 3 * split.noise_standard_errors[0]
+    agreeing = _linearization({"a": list(a), "b": list(b)}, list(-b + noise), noise_sd=0.05)
+    agreed = fit(agreeing, ["b"])
+    assert agreed.values[0] == pytest.approx(1.0, abs=0.05)
+    assert agreed.standard_errors[0] == agreed.noise_standard_errors[0]
+
+
 def test_a_trials_start_is_fitted_to_its_start_rows_and_the_physics_to_all_rows():
     """Noise-free, linear: the fit recovers the physics and every trial's start exactly (held-out predictions
     too); then a misfit along a trial's start columns in its later rows (what a missing effect's drift looks

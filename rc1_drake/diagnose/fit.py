@@ -34,8 +34,9 @@ class Fit:
     steps: np.ndarray  # d from the linearization point
     standard_errors: np.ndarray
     covariance: np.ndarray
-    # the sandwich's alone (the noise's), where the trial jackknife took the physics' block: how well the noise lets
-    # a coordinate be seen, whether or not the trials agree on the linear model
+    # the sandwich's (every row independent, with its channel's residual variance and the input noise), where the
+    # trial jackknife took the physics' block: how well the noise lets a coordinate be seen, whether or not the
+    # trials agree on the linear model
     noise_standard_errors: np.ndarray
     residual: list[np.ndarray]  # per trial, r0 + X d (linear prediction, all trials)
     held_out: list[np.ndarray]  # per trial, the prediction from the fit without that trial
