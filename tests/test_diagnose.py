@@ -480,7 +480,7 @@ TURNING = [Case([], 2), Case([], 1, bias_deg=4.0), Case([], 1, bias_deg=-4.0)]
 # longitudinal asymmetry. It is accepted at 0.40 (two trust steps) and estimated further once accepted (0.60 +- 0.05
 # (se)).
 # A lateral asymmetry needs turning trials: on one (-4 deg) at 0.8 it was found (0.81 +- 0.02 (se)); on both ways it
-# is not detectable (the synthesizer had overwritten the +4 deg trial until 2026-11-28: docs/findings.md).
+# ties with a head drag (the synthesizer had overwritten the +4 deg trial until 2026-11-28: docs/findings.md).
 # (A head drag on circling joint-2 trials was found here while the plant clamped the replays' servos at
 # 1.19 N m; with replays that follow the measured angles it is not detectable at 0.5-1.0 on 2-3 s trials.)
 @pytest.mark.slow
@@ -500,7 +500,8 @@ TURNING = [Case([], 2), Case([], 1, bias_deg=4.0), Case([], 1, bias_deg=-4.0)]
                 strict=True,
                 reason=(
                     "measured with both turning trials (before 2026-11-28 the synthesizer overwrote the +4 deg one): "
-                    "0.8 +- 0.83, not detectable, a head drag first; with one -4 deg trial found (docs/findings.md)"
+                    "ranked first at 0.64 +- 0.23, ambiguous with a head drag (48% / 35%); with one -4 deg trial "
+                    "found (docs/findings.md)"
                 ),
             ),
         ),
