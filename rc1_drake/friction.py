@@ -20,7 +20,7 @@ shorter still, and a larger eps changes the answer (a joint-7 failure drifts 25 
 for the velocity v+ at the end of the step (J: wheel velocity Jacobians), and outputs the force that
 produces it, tau = J^T f(J v+) = (M v+ - p_free) / dt. It starts from the secant linearisation
 f(u) ~ -D(u_n) u with D = c + mu N / sqrt(u_n^2 + eps^2) and polishes with Newton steps, each backtracked
-until the residual falls, until they move no velocity by 1e-9 m/s (tests/test_friction.py). The plant's
+until the residual falls, until they move no velocity by 1e-7 m/s (tests/test_friction.py). The plant's
 own step then reproduces v+ up to what this prediction leaves out: the joint-limit impulses, which
 the plant itself treats implicitly. A failed joint's viscous friction -c_joint q_dot is in the same
 solve, so all five of the paper's friction coefficients are parameters of this one system.
@@ -37,10 +37,11 @@ import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import BasicVector, LeafSystem, ValueProducer
 
+from .articulated import add_point_rate, articulated_matrix, articulated_solve, chain_inertias
 from .config import GRAVITY_M_S2, NUM_JOINTS, Friction
 from .discrepancy import NJK, NSK, NUM_SITES, NUM_TERMS, site_arrays, site_coefficients, site_force
 from .kinematics import ChainGeometry, jit, wheel_kinematics_kernel
-from .model import set_payload
+from .model import module_inertias, set_payload
 
 
 @jit
@@ -301,22 +302,30 @@ StepLaws = collections.namedtuple(
         # and its coefficients, in one array (a field per part costs every call its reference counts); S = 0 when
         # the model has no term. Its failed-joint terms are in joint_coulomb, mass_damped and the known torque.
         "sites",
+        # The same matrix body by body (articulated.py), for the O(n) solve: each module's planar inertia (nm, 3, 3)
+        # and each joint's motion (nj, 3) at the step's start, the joints' own rate dt (damping + a stop's rate)
+        # (nv,), and which module carries each wheel. No modules (an empty inertia): the solve is dense.
+        "inertia",
+        "motion",
+        "joint_rate",
+        "wheel_module",
     ],
 )
 
 
 @jit
-def assemble_step(v_next, tangent, laws, exact=False):
-    """The step's generalized force f(v+) (wheels, head, joint Coulomb, servos; Eqs. 4-5) and the matrix
-    mass_damped + dt * (rate of -f): its tangent (Newton) if `tangent`, else its secant (the start, which
-    linearizes each Coulomb term through the origin); `exact`: the tangent unclipped (coulomb_law). Also returns
-    which servos are not saturated."""
-    (jac_long, jac_lat, spans, mass_damped, dt, mu_long, mu_lat, c_long, c_lat, normal_force, eps, shape, jac_drag,
+def step_rates(v_next, tangent, laws, exact=False):
+    """The step's generalized force f(v+) but the discrepancy's (wheels, head and tail drags, joint Coulomb, servos;
+    Eqs. 4-5) and dt times the rate of -f term by term: each wheel's along and across its rolling direction (W, 2),
+    each drag point's (P, 2, 2) and the joints' own (nv,); the rate is the tangent (Newton) if `tangent`, else the
+    secant (the start, which linearizes each Coulomb term through the origin); `exact`: the tangent unclipped
+    (coulomb_law). Also returns which servos are not saturated."""
+    (jac_long, jac_lat, spans, _, dt, mu_long, mu_lat, c_long, c_lat, normal_force, eps, shape, jac_drag,
      drag_coulomb, drag_eps, joint_coulomb, joint_eps, servo_offset, servo_rate, servo_power,
-     sites) = laws  # fmt: skip
+     _, _, _, _, _) = laws  # fmt: skip
     n = v_next.shape[0]
     force = np.zeros(n)
-    matrix = mass_damped.copy()
+    wheel = np.empty((jac_long.shape[0], 2))
     for w in range(jac_long.shape[0]):
         span = spans[w]
         u_long, u_lat = 0.0, 0.0
@@ -326,33 +335,57 @@ def assemble_step(v_next, tangent, laws, exact=False):
         c_l, s_l, t_l = coulomb_law(u_long, mu_long * normal_force[w], eps, shape[1], 0.0, shape[3], not exact)
         c_t, s_t, t_t = coulomb_law(u_lat, mu_lat * normal_force[w], eps, shape[0], shape[2], shape[3], not exact)
         f_long, f_lat = -(c_long * u_long + c_l), -(c_lat * u_lat + c_t)
-        d_long = dt * (c_long + (t_l if tangent else s_l))
-        d_lat = dt * (c_lat + (t_t if tangent else s_t))
+        wheel[w, 0] = dt * (c_long + (t_l if tangent else s_l))
+        wheel[w, 1] = dt * (c_lat + (t_t if tangent else s_t))
         for a in range(span):
             force[a] += jac_long[w, a] * f_long + jac_lat[w, a] * f_lat
-            la, ta = d_long * jac_long[w, a], d_lat * jac_lat[w, a]
-            for b in range(a + 1):
-                matrix[a, b] += la * jac_long[w, b] + ta * jac_lat[w, b]
+    joint = np.zeros(n)
     linear = np.zeros(n)
     for a in range(n):
         if joint_coulomb[a] != 0.0:  # a discrepancy's dry torque may take some away
             f_j, s_j, t_j = coulomb_law(v_next[a], joint_coulomb[a], joint_eps, 0.0, 0.0, 1.0, not exact)
             force[a] -= f_j
-            matrix[a, a] += dt * (t_j if tangent else s_j)
+            joint[a] += dt * (t_j if tangent else s_j)
         raw = servo_offset[a] - servo_rate[a] * v_next[a]
         force[a] += min(max(raw, -servo_power[a]), servo_power[a])
         if abs(raw) < servo_power[a]:
             linear[a] = 1.0
-            matrix[a, a] += dt * servo_rate[a]
-    for a in range(n):
-        for b in range(a):
-            matrix[b, a] = matrix[a, b] - mass_damped[a, b] + mass_damped[b, a]
+            joint[a] += dt * servo_rate[a]
+    drag = np.zeros((drag_coulomb.shape[0], 2, 2))
     for p in range(drag_coulomb.shape[0]):
         if drag_coulomb[p] > 0.0:
             jac = np.ascontiguousarray(jac_drag[2 * p : 2 * p + 2])
             f_p, secant, k_p = _isotropic(jac @ v_next, drag_coulomb[p], drag_eps[p])
             force += jac.T @ f_p
-            matrix += dt * (jac.T @ k_p @ jac if tangent else secant * (jac.T @ jac))
+            drag[p] = dt * k_p if tangent else dt * secant * np.eye(2)
+    return force, wheel, joint, drag, linear
+
+
+@jit
+def assemble_step(v_next, tangent, laws, exact=False):
+    """The step's generalized force f(v+) (wheels, head, joint Coulomb, servos, the discrepancy; Eqs. 4-5) and the
+    matrix mass_damped + dt * (rate of -f), dense (step_rates for `tangent` and `exact`). Also returns which servos
+    are not saturated."""
+    force, wheel, joint, drag, linear = step_rates(v_next, tangent, laws, exact)
+    jac_long, jac_lat, spans, mass_damped, dt, jac_drag, sites = (
+        laws.jac_long, laws.jac_lat, laws.spans, laws.mass_damped, laws.dt, laws.jac_drag, laws.sites
+    )  # fmt: skip
+    n = v_next.shape[0]
+    matrix = mass_damped.copy()
+    for w in range(jac_long.shape[0]):
+        for a in range(spans[w]):
+            la, ta = wheel[w, 0] * jac_long[w, a], wheel[w, 1] * jac_lat[w, a]
+            for b in range(a + 1):
+                matrix[a, b] += la * jac_long[w, b] + ta * jac_lat[w, b]
+    for a in range(n):
+        matrix[a, a] += joint[a]
+    for a in range(n):
+        for b in range(a):
+            matrix[b, a] = matrix[a, b] - mass_damped[a, b] + mass_damped[b, a]
+    for p in range(drag.shape[0]):
+        if laws.drag_coulomb[p] > 0.0:
+            jac = np.ascontiguousarray(jac_drag[2 * p : 2 * p + 2])
+            matrix += jac.T @ np.ascontiguousarray(drag[p]) @ jac
     # The discrepancy model (discrepancy.py), by its exact rate in both modes: its terms are small beside Eqs. 4-5.
     for s in range(sites.shape[0]):
         along_s, across_s = sites[s, :n], sites[s, n : 2 * n]
@@ -363,7 +396,7 @@ def assemble_step(v_next, tangent, laws, exact=False):
         for a in range(span):  # loops, not BLAS calls: a step makes ~90 of these
             u_long += along_s[a] * v_next[a]
             u_lat += across_s[a] * v_next[a]
-        f_s, rate = site_force(u_long, u_lat, sites[s, 2 * n :], eps)
+        f_s, rate = site_force(u_long, u_lat, sites[s, 2 * n :], laws.eps)
         for a in range(span):
             force[a] += along_s[a] * f_s[0] + across_s[a] * f_s[1]
             along = rate[0, 0] * along_s[a] + rate[1, 0] * across_s[a]
@@ -374,13 +407,52 @@ def assemble_step(v_next, tangent, laws, exact=False):
 
 
 @jit
+def step_system(v_next, tangent, laws):
+    """(f(v+), the step matrix as the solve takes it, which servos are not saturated): body by body (articulated.py)
+    where the laws carry the modules' inertias and no discrepancy site (its side force is not symmetric), else
+    dense (assemble_step). The matrix is (dense or empty, modules' inertias with the rates or empty, joint rates)."""
+    if laws.inertia.shape[0] == 0 or laws.sites.shape[0] > 0:
+        force, matrix, linear = assemble_step(v_next, tangent, laws)
+        return force, (matrix, np.zeros((0, 3, 3)), np.zeros(0)), linear
+    force, wheel, joint, drag, linear = step_rates(v_next, tangent, laws)
+    inertia = laws.inertia.copy()
+    jac_long, jac_lat, wheel_module = laws.jac_long, laws.jac_lat, laws.wheel_module
+    for w in range(jac_long.shape[0]):  # a wheel's P^T D P on its module: P its rows' twist part (articulated.py)
+        k = wheel_module[w]
+        for a in range(3):
+            la, ta = wheel[w, 0] * jac_long[w, a], wheel[w, 1] * jac_lat[w, a]
+            for b in range(3):
+                inertia[k, a, b] += la * jac_long[w, b] + ta * jac_lat[w, b]
+    for p in range(drag.shape[0]):  # the head's centre on the head, the tail's end on the tail
+        if laws.drag_coulomb[p] > 0.0:
+            module = 0 if p == 0 else inertia.shape[0] - 1
+            add_point_rate(inertia[module], laws.jac_drag[2 * p : 2 * p + 2, :3], drag[p])
+    return force, (np.zeros((0, 0)), inertia, laws.joint_rate + joint), linear
+
+
+@jit
+def system_solve(system, laws, rhs):
+    """system^-1 rhs for step_system's matrix: by the articulated-body recursion, or densely (Cholesky, LU where the
+    matrix is not definite or not symmetric)."""
+    dense, inertia, joint_rate = system
+    if inertia.shape[0] == 0:
+        return _step_solve(dense, rhs, laws.sites.shape[0] == 0)
+    out = articulated_solve(inertia, joint_rate, laws.motion, rhs)
+    if out.shape[0] == 0:
+        return lu_solve(articulated_matrix(inertia, joint_rate, laws.motion), rhs)
+    return out
+
+
+@jit
 def _step_residual(v_next, laws, momentum_free):
     """The backward-Euler step's residual M v+ - p_free - dt f(v+) (with c_joint in M) and its Jacobian."""
-    force, matrix, _ = assemble_step(v_next, True, laws)
-    return laws.mass_damped @ v_next - momentum_free - laws.dt * force, matrix
+    force, system, _ = step_system(v_next, True, laws)
+    return laws.mass_damped @ v_next - momentum_free - laws.dt * force, system
 
 
-NEWTON_TOLERANCE_M_S = 1e-9  # a Newton step this small (in every velocity) ends the solve
+# A Newton step under 0.1 um/s (1e-4 of the sgn() smoothing) ends the solve once taken: its error is ~step^2 / eps.
+NEWTON_TOLERANCE_M_S = 1e-7
+NEWTON_STALL_M_S = 1e-9  # a backtracked step that moves no velocity by this much: the line search has stalled
 MAX_HALVINGS = 12
 
 
@@ -389,16 +461,15 @@ def _implicit_friction_force(laws, mass_matrix, momentum_free, v, newton_steps):
     dt, servo_offset, servo_rate, servo_power = laws.dt, laws.servo_offset, laws.servo_rate, laws.servo_power
     # The secant start: each Coulomb term through the origin at its rate at v; the servos as they stand at
     # v, linear where not saturated, a constant torque where saturated.
-    _, matrix, linear = assemble_step(v, False, laws)
+    _, system, linear = step_system(v, False, laws)
     servo = _servo_torque(servo_offset, servo_rate, servo_power, v)[0]
-    symmetric = laws.sites.shape[0] == 0  # the discrepancy's side force is not symmetric
-    v_next = _step_solve(matrix, momentum_free + dt * (linear * servo_offset + (1.0 - linear) * servo), symmetric)
+    v_next = system_solve(system, laws, momentum_free + dt * (linear * servo_offset + (1.0 - linear) * servo))
     # Newton steps from that secant start, each backtracked until the residual's norm falls (Armijo): a plain
     # Newton step cycles where the servo clamp or a Coulomb kink switches within the step, and the servos then
     # chatter (seen at 1 ms on noisy measured angles with two undamped steps).
-    residual, matrix = _step_residual(v_next, laws, momentum_free)
+    residual, system = _step_residual(v_next, laws, momentum_free)
     for _ in range(newton_steps):
-        step = _step_solve(matrix, residual, symmetric)
+        step = system_solve(system, laws, residual)
         if np.abs(step).max() < NEWTON_TOLERANCE_M_S:  # converged: take the last step, nothing left to check
             v_next = v_next - step
             break
@@ -406,13 +477,13 @@ def _implicit_friction_force(laws, mass_matrix, momentum_free, v, newton_steps):
         alpha = 1.0
         for _ in range(MAX_HALVINGS):
             trial = v_next - alpha * step
-            trial_residual, trial_matrix = _step_residual(trial, laws, momentum_free)
+            trial_residual, trial_system = _step_residual(trial, laws, momentum_free)
             if trial_residual @ trial_residual <= (1.0 - 1e-4 * alpha) * norm:
                 break
             alpha *= 0.5
         moved = alpha * np.abs(step).max()
-        v_next, residual, matrix = trial, trial_residual, trial_matrix
-        if moved < NEWTON_TOLERANCE_M_S:  # the line search stalled
+        v_next, residual, system = trial, trial_residual, trial_system
+        if moved < NEWTON_STALL_M_S:
             break
     servo = _servo_torque(servo_offset, servo_rate, servo_power, v_next)[0]
     return (mass_matrix @ v_next - momentum_free) / dt - servo, servo  # the plant applies the servo torque itself
@@ -478,6 +549,10 @@ def implicit_friction_force(
         rate,
         power,
         np.zeros((0, nv)),
+        np.zeros((0, 3, 3)),
+        np.zeros((0, 3)),
+        dt * np.asarray(joint_damping, dtype=float),
+        np.zeros(jac_long.shape[0], dtype=np.int64),
     )
     force, torque = _implicit_friction_force(laws, mass_matrix, momentum_free, v, newton_steps)
     return force if servo is None else (force, torque)
@@ -575,20 +650,27 @@ def friction_problem(
     servo_power,
     servo_gains,
     chain,
+    bodies,
 ):
     """The implicit step at state x: its StepLaws (wheel Jacobians along and across the wheels, joint damping with a
-    failed joint's compliant stop, the friction-law terms, the servos' backward-Euler offset, rate and power), the
-    free momentum (the stop's known torque in it), that known torque, and the wheels' toe."""
+    failed joint's compliant stop, the friction-law terms, the servos' backward-Euler offset, rate and power, the
+    modules' inertias from `bodies` (module_inertias' (nm, 4); none: the solve is dense)), the free momentum (the
+    stop's known torque in it), that known torque, and the wheels' toe."""
     joint_in_parent, joint_in_child, wheel_module, wheel_offset, wheel_toe = chain
     nw = wheel_module.shape[0]
     toe = wheel_toe * np.exp(1j * params[PER_WHEEL + nw : PER_WHEEL + 2 * nw])
     _, direction, jacobian = wheel_kinematics_kernel(
         x, joint_in_parent, joint_in_child, wheel_module, wheel_offset, toe
     )
-    local = np.conj(direction).reshape(-1, 1) * jacobian  # rows: v_long + i v_lat of each wheel
-    jac_long = np.ascontiguousarray(local.real)
-    jac_lat = np.ascontiguousarray(local.imag)
     nv = x.shape[0] // 2
+    jac_long, jac_lat = np.empty((nw, nv)), np.empty((nw, nv))  # rows: v_long + i v_lat of each wheel
+    spans = np.empty(nw, dtype=np.int64)
+    for w in range(nw):
+        along = np.conj(direction[w])
+        for a in range(nv):
+            local = along * jacobian[w, a]
+            jac_long[w, a], jac_lat[w, a] = local.real, local.imag
+        spans[w] = jacobian_span(jac_long, jac_lat, w)
     v = np.ascontiguousarray(x[nv:])
     joint_damping = np.zeros(nv)
     joint_coulomb = np.zeros(nv)
@@ -629,11 +711,16 @@ def friction_problem(
     servo_offset[3:] = servo_command + kd * v[3:]
     servo_rate[3:] = kd + dt * kp
     power[3:] = servo_power
+    joint_rate = dt * (joint_damping + stop_rate)
+    if bodies.shape[0]:
+        inertia, motion = chain_inertias(x, bodies, joint_in_parent, joint_in_child)
+    else:
+        inertia, motion = np.zeros((0, 3, 3)), np.zeros((0, 3))
     laws = StepLaws(
         jac_long,
         jac_lat,
-        np.array([jacobian_span(jac_long, jac_lat, w) for w in range(nw)]),
-        mass_matrix + dt * np.diag(joint_damping + stop_rate),
+        spans,
+        mass_matrix + np.diag(joint_rate),
         dt,
         params[MU_LONG],
         params[MU_LAT],
@@ -651,6 +738,10 @@ def friction_problem(
         servo_rate,
         power,
         sites,
+        inertia,
+        motion,
+        joint_rate,
+        wheel_module,
     )
     return laws, mass_matrix @ v + dt * other_force + dt * spring, spring, toe
 
@@ -677,9 +768,10 @@ def friction_step(
     servo_power,
     servo_gains,
     chain,
+    bodies,
 ):
     laws, momentum_free, spring, _ = friction_problem(
-        x, other_force, mass_matrix, dt, params, servo_command, servo_power, servo_gains, chain
+        x, other_force, mass_matrix, dt, params, servo_command, servo_power, servo_gains, chain, bodies
     )
     force, servo = _implicit_friction_force(laws, mass_matrix, momentum_free, x[x.shape[0] // 2 :], newton_steps)
     return force + spring, servo  # the solve's force leaves out the spring it was given as known
@@ -740,6 +832,7 @@ class FrictionForces(LeafSystem):
         self._plant = plant
         self._plant_context = plant.CreateDefaultContext()
         self._payload_applied = (0.0, 0.0)
+        self._bodies = module_inertias(plant, self._plant_context)
         self._geometry = geometry.arrays
         self._dt = plant.time_step()
         self._servo_gains = np.array(servo_gains, dtype=float)
@@ -810,6 +903,7 @@ class FrictionForces(LeafSystem):
         if payload != self._payload_applied:  # the solve's mass matrix must carry the payload too
             set_payload(plant, plant_context, int(payload[1]), payload[0])
             self._payload_applied = payload
+            self._bodies = module_inertias(plant, plant_context)
         plant.SetPositionsAndVelocities(plant_context, x)
         known = self.known_forces(context)
         other = -plant.CalcBiasTerm(plant_context)
@@ -828,6 +922,7 @@ class FrictionForces(LeafSystem):
             power_port.Eval(context),
             self._servo_gains,
             self._geometry,
+            self._bodies,
         )
         step = value.get_mutable_value()
         step[: len(other)] = friction + extra

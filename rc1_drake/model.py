@@ -97,6 +97,19 @@ def chain_geometry(plant, instance) -> ChainGeometry:
     )
 
 
+def module_inertias(plant, context) -> np.ndarray:
+    """(14, 4): each module's mass (kg), yaw inertia about its centre of mass (kg m^2) and centre of mass (x, y, m)
+    in its frame, as the plant holds them in `context` (a payload included): what the step's O(n) solve takes."""
+    instance = plant.GetModelInstanceByName("rc1")
+    rows = []
+    for k in range(1, NUM_MODULES + 1):
+        inertia = plant.GetBodyByName(f"module_{k}", instance).CalcSpatialInertiaInBodyFrame(context)
+        com = inertia.get_com()
+        central = inertia.Shift(com).CalcRotationalInertia().get_moments()[2]
+        rows.append([inertia.get_mass(), central, com[0], com[1]])
+    return np.array(rows)
+
+
 def set_payload(plant, plant_context, module: int, kg: float) -> None:
     """Give module `module` (1..14; 0: none) an extra point mass `kg` at its centre, the others their SDF
     inertia. A point mass at the centre of mass adds mass but no rotational inertia about it."""

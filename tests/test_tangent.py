@@ -101,10 +101,11 @@ def test_friction_tangent_matches_central_differences_of_the_solve():
     command = rng.normal(scale=0.3, size=13)
     power, gains, dt = numbers.effort_limit, np.array([20.0, 0.2]), 1e-3
     mass, inertia, com = numbers.masses(), numbers.central_yaw_inertia, numbers.com
+    bodies = np.column_stack([mass, inertia, com.real, com.imag])
 
     def v_plus(x, p, u):
         M, bias, _ = chain_terms(x, mass, inertia, com, jp, jc, 0j)
-        force, servo = fr.friction_step(x, -bias, M, dt, p, 50, u, power, gains, geometry.arrays)
+        force, servo = fr.friction_step(x, -bias, M, dt, p, 50, u, power, gains, geometry.arrays, bodies)
         return np.linalg.solve(M, M @ x[16:] + dt * (-bias + force + servo))
 
     x = run.state[40]

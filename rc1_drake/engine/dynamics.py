@@ -49,21 +49,15 @@ def plant_numbers() -> PlantNumbers:
     """The robot's numbers as the MultibodyPlant reads them from models/rc1.sdf (once per process)."""
     from pydrake.systems.framework import DiagramBuilder
 
-    from ..model import NUM_MODULES, add_rc1_plant
+    from ..model import add_rc1_plant, module_inertias
 
     rc1 = add_rc1_plant(DiagramBuilder(), time_step=1e-3)
     plant = rc1.plant
-    context = plant.CreateDefaultContext()
-    inertias = [
-        plant.GetBodyByName(f"module_{k}", rc1.model_instance).CalcSpatialInertiaInBodyFrame(context)
-        for k in range(1, NUM_MODULES + 1)
-    ]
-    com = np.array([complex(*s.get_com()[:2]) for s in inertias])
-    central = np.array([s.Shift(s.get_com()).CalcRotationalInertia().get_moments()[2] for s in inertias])
+    bodies = module_inertias(plant, plant.CreateDefaultContext())
     return PlantNumbers(
         geometry=rc1.geometry,
-        com=com,
-        central_yaw_inertia=central,
+        com=bodies[:, 2] + 1j * bodies[:, 3],
+        central_yaw_inertia=bodies[:, 1],
         effort_limit=np.array(rc1.effort_limit, dtype=float),
         lower_limit=np.array([j.position_lower_limits()[0] for j in rc1.joints]),
         upper_limit=np.array([j.position_upper_limits()[0] for j in rc1.joints]),

@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..kinematics import jit
-from .step import PlantTerms, plant_step
+from .step import plant_step, plant_terms
 from .tangent import step_tangent
 
 RUNNING, CROSSED, CIRCLING, NOT_FINITE = 0, 1, 2, 3
@@ -216,7 +216,7 @@ def advance_run(
     nq = x.shape[0] // 2
     gravity_xy = model[0] + 1j * model[1]
     in_plane = model[2] != 0.0
-    plant = PlantTerms(mass, yaw_inertia, com, gravity_xy, in_plane, lower, upper, locked, chain)
+    plant = plant_terms(mass, yaw_inertia, com, gravity_xy, in_plane, lower, upper, locked, chain)
     servo_gains = np.array([gains[0], gains[2]])
     for k in range(k0, k1):
         t = k * dt if k > k0 or np.isnan(t_first) else t_first

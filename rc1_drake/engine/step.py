@@ -112,8 +112,17 @@ def _limit_solve(q, v, v_star, A, dt, lower, upper, locked):
 # masses, yaw inertias and centres of mass, gravity's floor component and whether it acts in the plane, the joint
 # limits, the locked joints, and the chain's geometry (kinematics.ChainGeometry.arrays).
 PlantTerms = collections.namedtuple(
-    "PlantTerms", ["mass", "yaw_inertia", "com", "gravity_xy", "gravity_in_plane", "lower", "upper", "locked", "chain"]
+    "PlantTerms",
+    ["mass", "yaw_inertia", "com", "gravity_xy", "gravity_in_plane", "lower", "upper", "locked", "chain", "bodies"],
 )
+
+
+@jit
+def plant_terms(mass, yaw_inertia, com, gravity_xy, gravity_in_plane, lower, upper, locked, chain):
+    """PlantTerms, with the modules as the O(n) solve takes them (model.module_inertias' layout)."""
+    bodies = np.empty((mass.shape[0], 4))
+    bodies[:, 0], bodies[:, 1], bodies[:, 2], bodies[:, 3] = mass, yaw_inertia, com.real, com.imag
+    return PlantTerms(mass, yaw_inertia, com, gravity_xy, gravity_in_plane, lower, upper, locked, chain, bodies)
 
 
 @jit
@@ -129,7 +138,7 @@ def plant_step(
 ):
     """(x+, servo torque (13,), v*, the force that gives the friction solve's v+ = v + dt M^-1 force) of one
     Diagram step from state x (module docstring)."""
-    mass, yaw_inertia, com, gravity_xy, gravity_in_plane, lower, upper, locked, chain = plant
+    mass, yaw_inertia, com, gravity_xy, gravity_in_plane, lower, upper, locked, chain, bodies = plant
     joint_in_parent, joint_in_child, _, _, _ = chain
     nv = x.shape[0] // 2
     M, bias, gravity = chain_terms(x, mass, yaw_inertia, com, joint_in_parent, joint_in_child, gravity_xy)
@@ -147,6 +156,7 @@ def plant_step(
         servo_power,
         servo_gains,
         chain,
+        bodies,
     )
     tau = -bias + gravity + friction + extra_force  # the plant applies its gravity field itself
     tau[3:] += servo[3:]

@@ -254,7 +254,7 @@ def friction_tangent(
     nv = x.shape[0] // 2
     nw = wheel_module.shape[0]
     laws, _, _, toe = friction_problem(
-        x, other_force, mass_matrix, dt, params, servo_command, servo_power, servo_gains, chain
+        x, other_force, mass_matrix, dt, params, servo_command, servo_power, servo_gains, chain, np.zeros((0, 4))
     )
     _, K, linear = assemble_step(v_plus, True, laws, True)
     jac_long, jac_lat, spans, normal, eps = laws.jac_long, laws.jac_lat, laws.spans, laws.normal_force, laws.eps
@@ -416,7 +416,7 @@ def step_tangent(
     gravity's floor components dgravity (P, 2) and command directions dcommand, given the step's forces and
     velocities: the friction solve's v+ = v + dt M^-1 force_plus, v* (the free motion) and v_new (after locked
     joints and limits). Each stage is differentiated as it is computed (step.py)."""
-    mass, yaw_inertia, com, gravity_xy, in_plane, lower, upper, locked, chain = plant
+    mass, yaw_inertia, com, gravity_xy, in_plane, lower, upper, locked, chain, _ = plant
     joint_in_parent, joint_in_child, wheel_module, wheel_offset, wheel_toe = chain
     nv = x.shape[0] // 2
     num = S.shape[0]

@@ -1,0 +1,144 @@
+"""The chain's implicit step matrix in O(n): each module's 3 x 3 planar inertia and the joints' motions, and the
+articulated-body solve (Featherstone's ABA, here as the block elimination of one linear system) that replaces the
+dense assembly and Cholesky factor of friction.assemble_step in the implicit friction solve (paper Eqs. 1, 4-5).
+
+A module's planar twist V = (vx, vy, w) is taken at the head's centre p0, in world axes; the head's twist is its
+three base coordinates (x, y, yaw rates), and joint j adds S_j q_dot_j with S_j = (d_y, -d_x, 1), d = P_j - p0
+(P_j: the joint's world position): the velocity a unit rotation about P_j gives the point at p0. The step matrix
+of the backward-Euler step is then
+
+    A = sum_k J_k^T B_k J_k + diag(a),   J_k = [I_3, S_0, ..., S_{k-1}, 0 ...]   (module k's twist = J_k v),
+
+with B_k module k's planar inertia about p0 (mass m at centre of mass c, yaw inertia I about it:
+m [[1, 0, -r_y], [0, 1, r_x], [-r_y, r_x, |r|^2]] + I e_3 e_3^T, r = c - p0) plus dt times each wheel's and drag
+point's damping rate, P^T D P with P its velocity rows on the twist, and a the joints' own rates (their viscous
+friction, dry friction's rate, the servos' backward-Euler rate). This is the mass matrix of engine/dynamics.py
+(Eq. 1) with the friction's rate added body by body: every wheel term is local to its module, as an inertia is.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .kinematics import jit
+
+
+@jit
+def chain_inertias(x, bodies, joint_in_parent, joint_in_child):
+    """(B (nm, 3, 3): each module's planar inertia about the head's centre, world axes; S (nj, 3): the joints'
+    motions) at state x. bodies (nm, 4): mass, yaw inertia about the centre of mass, centre of mass (x, y) in the
+    module's frame (module docstring)."""
+    nj = joint_in_parent.shape[0]
+    phi = np.cumsum(x[2 : 3 + nj])
+    e = np.exp(1j * phi)
+    inertia = np.zeros((nj + 1, 3, 3))
+    motion = np.empty((nj, 3))
+    p = x[0] + 1j * x[1]
+    p0 = p
+    for k in range(nj + 1):
+        if k > 0:
+            joint = p + e[k - 1] * joint_in_parent[k - 1]
+            d = joint - p0
+            motion[k - 1, 0], motion[k - 1, 1], motion[k - 1, 2] = d.imag, -d.real, 1.0
+            p = joint - e[k] * joint_in_child[k - 1]
+        r = p + e[k] * (bodies[k, 2] + 1j * bodies[k, 3]) - p0
+        m = bodies[k, 0]
+        inertia[k, 0, 0] = m
+        inertia[k, 1, 1] = m
+        inertia[k, 0, 2] = inertia[k, 2, 0] = -m * r.imag
+        inertia[k, 1, 2] = inertia[k, 2, 1] = m * r.real
+        inertia[k, 2, 2] = m * (r.real**2 + r.imag**2) + bodies[k, 1]
+    return inertia, motion
+
+
+@jit
+def add_point_rate(inertia, rows, rate):
+    """inertia += rows^T rate rows in place: a point's damping (rate, r x r) on its module's twist, rows (r, 3) its
+    velocity per unit twist (the first three columns of its velocity Jacobian)."""
+    n = rows.shape[0]
+    for a in range(3):
+        for b in range(3):
+            total = 0.0
+            for i in range(n):
+                for j in range(n):
+                    total += rows[i, a] * rate[i, j] * rows[j, b]
+            inertia[a, b] += total
+
+
+@jit
+def articulated_solve(inertia, joint_rate, motion, rhs):
+    """A^-1 rhs for A = sum_k J_k^T inertia_k J_k + diag(joint_rate) (module docstring) by the articulated-body
+    recursion: from the tail, each joint's subtree is folded into its parent's inertia; the head's 3 x 3 is solved;
+    then the joints' rates follow from the head outward. An empty array where a pivot is not positive (A is not
+    definite): the caller then solves densely."""
+    nj = motion.shape[0]
+    nv = rhs.shape[0]
+    art = inertia.copy()
+    bias = np.zeros((nj + 1, 3))
+    carried = np.empty((nj, 3))  # U_j = art_{j+1} S_j
+    pivot = np.empty(nj)
+    reduced = np.empty(nj)  # rhs_j - S_j . bias_{j+1}
+    for j in range(nj - 1, -1, -1):  # loops, not BLAS calls: 3 x 3 blocks
+        u = carried[j]
+        d = joint_rate[3 + j]
+        r = rhs[3 + j]
+        for a in range(3):
+            u[a] = art[j + 1, a, 0] * motion[j, 0] + art[j + 1, a, 1] * motion[j, 1] + art[j + 1, a, 2] * motion[j, 2]
+            d += motion[j, a] * u[a]
+            r -= motion[j, a] * bias[j + 1, a]
+        if not d > 0.0:
+            return np.zeros(0)
+        pivot[j], reduced[j] = d, r
+        for a in range(3):
+            bias[j, a] += bias[j + 1, a] + u[a] * r / d
+            for b in range(3):
+                art[j, a, b] += art[j + 1, a, b] - u[a] * u[b] / d
+    head = art[0].copy()
+    for a in range(3):
+        head[a, a] += joint_rate[a]
+    # The head's 3 x 3 by Cholesky, written out: a generic call costs more than the whole recursion.
+    l00 = head[0, 0]
+    if not l00 > 0.0:
+        return np.zeros(0)
+    l00 = np.sqrt(l00)
+    l10, l20 = head[1, 0] / l00, head[2, 0] / l00
+    l11 = head[1, 1] - l10 * l10
+    if not l11 > 0.0:
+        return np.zeros(0)
+    l11 = np.sqrt(l11)
+    l21 = (head[2, 1] - l20 * l10) / l11
+    l22 = head[2, 2] - l20 * l20 - l21 * l21
+    if not l22 > 0.0:
+        return np.zeros(0)
+    l22 = np.sqrt(l22)
+    y0 = (rhs[0] - bias[0, 0]) / l00
+    y1 = (rhs[1] - bias[0, 1] - l10 * y0) / l11
+    y2 = (rhs[2] - bias[0, 2] - l20 * y0 - l21 * y1) / l22
+    out = np.empty(nv)
+    out[2] = y2 / l22
+    out[1] = (y1 - l21 * out[2]) / l11
+    out[0] = (y0 - l10 * out[1] - l20 * out[2]) / l00
+    t0, t1, t2 = out[0], out[1], out[2]  # the parent's twist
+    for j in range(nj):
+        rate = (reduced[j] - carried[j, 0] * t0 - carried[j, 1] * t1 - carried[j, 2] * t2) / pivot[j]
+        out[3 + j] = rate
+        t0, t1, t2 = t0 + motion[j, 0] * rate, t1 + motion[j, 1] * rate, t2 + motion[j, 2] * rate
+    return out
+
+
+@jit
+def articulated_matrix(inertia, joint_rate, motion):
+    """A = sum_k J_k^T inertia_k J_k + diag(joint_rate), dense (module docstring): where the recursion finds A not
+    definite, and to check it."""
+    nj = motion.shape[0]
+    nv = nj + 3
+    columns = np.zeros((3, nv))  # J_k, grown one joint a module
+    columns[0, 0] = columns[1, 1] = columns[2, 2] = 1.0
+    out = np.diag(joint_rate.astype(np.float64))
+    for k in range(nj + 1):
+        if k > 0:
+            columns[:, 2 + k] = motion[k - 1]
+        n = 3 + k
+        used = np.ascontiguousarray(columns[:, :n])
+        out[:n, :n] += used.T @ (np.ascontiguousarray(inertia[k]) @ used)
+    return out
