@@ -273,8 +273,9 @@ def jacobian_span(jac_long, jac_lat, w):
     return span
 
 
-# One step's friction laws and servos, as assemble_step takes them (friction_problem builds them): a new force term
-# enters here, in friction_problem and in assemble_step (its derivative in engine/tangent.py), and nowhere else.
+# One step's friction laws and servos, as step_rates takes them (friction_problem builds them): a new force term
+# enters here, in friction_problem and in step_rates (its rate's place in assemble_step and step_system, its
+# derivative in engine/tangent.py), and nowhere else.
 StepLaws = collections.namedtuple(
     "StepLaws",
     [
@@ -303,12 +304,11 @@ StepLaws = collections.namedtuple(
         # the model has no term. Its failed-joint terms are in joint_coulomb, mass_damped and the known torque.
         "sites",
         # The same matrix body by body (articulated.py), for the O(n) solve: each module's planar inertia (nm, 3, 3)
-        # and each joint's motion (nj, 3) at the step's start, the joints' own rate dt (damping + a stop's rate)
-        # (nv,), and which module carries each wheel. No modules (an empty inertia): the solve is dense.
+        # and each joint's motion (nj, 3) at the step's start, and the joints' own rate dt (damping + a stop's rate)
+        # (nv,). No modules (an empty inertia): the solve is dense.
         "inertia",
         "motion",
         "joint_rate",
-        "wheel_module",
     ],
 )
 
@@ -322,7 +322,7 @@ def step_rates(v_next, tangent, laws, exact=False):
     (coulomb_law). Also returns which servos are not saturated."""
     (jac_long, jac_lat, spans, _, dt, mu_long, mu_lat, c_long, c_lat, normal_force, eps, shape, jac_drag,
      drag_coulomb, drag_eps, joint_coulomb, joint_eps, servo_offset, servo_rate, servo_power,
-     _, _, _, _, _) = laws  # fmt: skip
+     _, _, _, _) = laws  # fmt: skip
     n = v_next.shape[0]
     force = np.zeros(n)
     wheel = np.empty((jac_long.shape[0], 2))
@@ -416,17 +416,19 @@ def step_system(v_next, tangent, laws):
         return force, (matrix, np.zeros((0, 3, 3)), np.zeros(0)), linear
     force, wheel, joint, drag, linear = step_rates(v_next, tangent, laws)
     inertia = laws.inertia.copy()
-    jac_long, jac_lat, wheel_module = laws.jac_long, laws.jac_lat, laws.wheel_module
-    for w in range(jac_long.shape[0]):  # a wheel's P^T D P on its module: P its rows' twist part (articulated.py)
-        k = wheel_module[w]
+    jac_long, jac_lat, jac_drag = laws.jac_long, laws.jac_lat, laws.jac_drag
+    # A point's P^T D P on the last module whose joint moves it (P: its rows' twist part, articulated.py); behind a
+    # joint that does not move it, it may as well ride ahead of that joint.
+    for w in range(jac_long.shape[0]):
+        k = max(laws.spans[w] - 3, 0)
         for a in range(3):
             la, ta = wheel[w, 0] * jac_long[w, a], wheel[w, 1] * jac_lat[w, a]
             for b in range(3):
                 inertia[k, a, b] += la * jac_long[w, b] + ta * jac_lat[w, b]
-    for p in range(drag.shape[0]):  # the head's centre on the head, the tail's end on the tail
+    for p in range(drag.shape[0]):
         if laws.drag_coulomb[p] > 0.0:
-            module = 0 if p == 0 else inertia.shape[0] - 1
-            add_point_rate(inertia[module], laws.jac_drag[2 * p : 2 * p + 2, :3], drag[p])
+            span = max(jacobian_span(jac_drag, jac_drag, 2 * p), jacobian_span(jac_drag, jac_drag, 2 * p + 1))
+            add_point_rate(inertia[max(span - 3, 0)], jac_drag[2 * p : 2 * p + 2, :3], drag[p])
     return force, (np.zeros((0, 0)), inertia, laws.joint_rate + joint), linear
 
 
@@ -552,7 +554,6 @@ def implicit_friction_force(
         np.zeros((0, 3, 3)),
         np.zeros((0, 3)),
         dt * np.asarray(joint_damping, dtype=float),
-        np.zeros(jac_long.shape[0], dtype=np.int64),
     )
     force, torque = _implicit_friction_force(laws, mass_matrix, momentum_free, v, newton_steps)
     return force if servo is None else (force, torque)
@@ -741,7 +742,6 @@ def friction_problem(
         inertia,
         motion,
         joint_rate,
-        wheel_module,
     )
     return laws, mass_matrix @ v + dt * other_force + dt * spring, spring, toe
 
