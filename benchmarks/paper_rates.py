@@ -64,7 +64,8 @@ VARIANTS = {
     "no-failed-joint-scatter": {"thresholds": Thresholds(max_failed_joint_scatter=0.0)},
     # The default before 2026-11-28 (16): detectability by the trial jackknife's standard errors where larger.
     "detectable-by-jackknife": {"thresholds": Thresholds(detectable_by_noise=False)},
-    # The replay's own error from 4 draws a trial instead of 6 (84 of the shipped diagnosis's 920 replays).
+    # The replay's own error from 4 draws a trial instead of 6 (84 of the shipped diagnosis's 920 replays): not
+    # landed, docs/findings.md 2026-11-28 (17).
     "four-draws": {"input_noise_samples": 4},
 }
 
