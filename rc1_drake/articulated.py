@@ -24,24 +24,19 @@ from .kinematics import jit
 
 
 @jit
-def chain_inertias(x, bodies, joint_in_parent, joint_in_child):
+def chain_inertias(frames, bodies):
     """(B (nm, 3, 3): each module's planar inertia about the head's centre, world axes; S (nj, 3): the joints'
-    motions) at state x. bodies (nm, 4): mass, yaw inertia about the centre of mass, centre of mass (x, y) in the
-    module's frame (module docstring)."""
-    nj = joint_in_parent.shape[0]
-    phi = np.cumsum(x[2 : 3 + nj])
-    e = np.exp(1j * phi)
-    inertia = np.zeros((nj + 1, 3, 3))
-    motion = np.empty((nj, 3))
-    p = x[0] + 1j * x[1]
-    p0 = p
-    for k in range(nj + 1):
+    motions) from the chain's frames (kinematics.chain_frames). bodies (nm, 4): mass, yaw inertia about the centre
+    of mass, centre of mass (x, y) in the module's frame (module docstring)."""
+    e, p, joint = frames
+    nm = p.shape[0]
+    inertia = np.zeros((nm, 3, 3))
+    motion = np.empty((nm - 1, 3))
+    for k in range(nm):
         if k > 0:
-            joint = p + e[k - 1] * joint_in_parent[k - 1]
-            d = joint - p0
+            d = joint[k - 1] - p[0]
             motion[k - 1, 0], motion[k - 1, 1], motion[k - 1, 2] = d.imag, -d.real, 1.0
-            p = joint - e[k] * joint_in_child[k - 1]
-        r = p + e[k] * (bodies[k, 2] + 1j * bodies[k, 3]) - p0
+        r = p[k] + e[k] * (bodies[k, 2] + 1j * bodies[k, 3]) - p[0]
         m = bodies[k, 0]
         inertia[k, 0, 0] = m
         inertia[k, 1, 1] = m

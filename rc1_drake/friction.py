@@ -40,7 +40,7 @@ from pydrake.systems.framework import BasicVector, LeafSystem, ValueProducer
 from .articulated import add_point_rate, articulated_matrix, articulated_solve, chain_inertias
 from .config import GRAVITY_M_S2, NUM_JOINTS, Friction
 from .discrepancy import NJK, NSK, NUM_SITES, NUM_TERMS, site_arrays, site_coefficients, site_force
-from .kinematics import ChainGeometry, jit, wheel_kinematics_kernel
+from .kinematics import ChainGeometry, chain_frames, jit, wheel_kinematics_at, wheel_kinematics_kernel
 from .model import module_inertias, set_payload
 
 
@@ -452,14 +452,18 @@ def _step_residual(v_next, laws, momentum_free):
     return laws.mass_damped @ v_next - momentum_free - laws.dt * force, system
 
 
-# A Newton step under 0.1 um/s (1e-4 of the sgn() smoothing) ends the solve once taken: its error is ~step^2 / eps.
-NEWTON_TOLERANCE_M_S = 1e-7
+# A Newton step under 10 um/s ends the solve once taken: the error left is ~step^2 / eps (measured on a replay:
+# 130-1200 step^2, so <= ~1e-7 m/s, 1e-4 of the sgn() smoothing), and a quarter of a step's cost is saved. A run
+# that is differentiated solves on (engine/tangent.py linearizes the converged step: at 1e-5 its columns miss
+# central differences by 3e-4).
+NEWTON_FINAL_STEP_M_S = 1e-5
+TANGENT_FINAL_STEP_M_S = 1e-7
 NEWTON_STALL_M_S = 1e-9  # a backtracked step that moves no velocity by this much: the line search has stalled
 MAX_HALVINGS = 12
 
 
 @jit
-def _implicit_friction_force(laws, mass_matrix, momentum_free, v, newton_steps):
+def _implicit_friction_force(laws, mass_matrix, momentum_free, v, newton_steps, final_step):
     dt, servo_offset, servo_rate, servo_power = laws.dt, laws.servo_offset, laws.servo_rate, laws.servo_power
     # The secant start: each Coulomb term through the origin at its rate at v; the servos as they stand at
     # v, linear where not saturated, a constant torque where saturated.
@@ -472,7 +476,7 @@ def _implicit_friction_force(laws, mass_matrix, momentum_free, v, newton_steps):
     residual, system = _step_residual(v_next, laws, momentum_free)
     for _ in range(newton_steps):
         step = system_solve(system, laws, residual)
-        if np.abs(step).max() < NEWTON_TOLERANCE_M_S:  # converged: take the last step, nothing left to check
+        if np.abs(step).max() < final_step:  # converged: take the last step, nothing left to check
             v_next = v_next - step
             break
         norm = residual @ residual
@@ -488,7 +492,8 @@ def _implicit_friction_force(laws, mass_matrix, momentum_free, v, newton_steps):
         if moved < NEWTON_STALL_M_S:
             break
     servo = _servo_torque(servo_offset, servo_rate, servo_power, v_next)[0]
-    return (mass_matrix @ v_next - momentum_free) / dt - servo, servo  # the plant applies the servo torque itself
+    # The plant applies the servo torque itself; v+ also returned: the plant's free motion, without a second solve.
+    return (mass_matrix @ v_next - momentum_free) / dt - servo, servo, v_next
 
 
 def implicit_friction_force(
@@ -555,7 +560,9 @@ def implicit_friction_force(
         np.zeros((0, 3)),
         dt * np.asarray(joint_damping, dtype=float),
     )
-    force, torque = _implicit_friction_force(laws, mass_matrix, momentum_free, v, newton_steps)
+    force, torque, _ = _implicit_friction_force(
+        laws, mass_matrix, momentum_free, v, newton_steps, TANGENT_FINAL_STEP_M_S
+    )
     return force if servo is None else (force, torque)
 
 
@@ -660,9 +667,8 @@ def friction_problem(
     joint_in_parent, joint_in_child, wheel_module, wheel_offset, wheel_toe = chain
     nw = wheel_module.shape[0]
     toe = wheel_toe * np.exp(1j * params[PER_WHEEL + nw : PER_WHEEL + 2 * nw])
-    _, direction, jacobian = wheel_kinematics_kernel(
-        x, joint_in_parent, joint_in_child, wheel_module, wheel_offset, toe
-    )
+    frames = chain_frames(x, joint_in_parent, joint_in_child)
+    _, direction, jacobian = wheel_kinematics_at(frames, wheel_module, wheel_offset, toe)
     nv = x.shape[0] // 2
     jac_long, jac_lat = np.empty((nw, nv)), np.empty((nw, nv))  # rows: v_long + i v_lat of each wheel
     spans = np.empty(nw, dtype=np.int64)
@@ -714,7 +720,7 @@ def friction_problem(
     power[3:] = servo_power
     joint_rate = dt * (joint_damping + stop_rate)
     if bodies.shape[0]:
-        inertia, motion = chain_inertias(x, bodies, joint_in_parent, joint_in_child)
+        inertia, motion = chain_inertias(frames, bodies)
     else:
         inertia, motion = np.zeros((0, 3, 3)), np.zeros((0, 3))
     laws = StepLaws(
@@ -764,6 +770,7 @@ def friction_step(
     dt,
     params,
     newton_steps,
+    final_step,
     servo_command,
     servo_power,
     servo_gains,
@@ -773,8 +780,10 @@ def friction_step(
     laws, momentum_free, spring, _ = friction_problem(
         x, other_force, mass_matrix, dt, params, servo_command, servo_power, servo_gains, chain, bodies
     )
-    force, servo = _implicit_friction_force(laws, mass_matrix, momentum_free, x[x.shape[0] // 2 :], newton_steps)
-    return force + spring, servo  # the solve's force leaves out the spring it was given as known
+    force, servo, v_next = _implicit_friction_force(
+        laws, mass_matrix, momentum_free, x[x.shape[0] // 2 :], newton_steps, final_step
+    )
+    return force + spring, servo, v_next  # the solve's force leaves out the spring it was given as known
 
 
 @jit
@@ -822,7 +831,7 @@ class FrictionForces(LeafSystem):
     forces of the step (KnownForces, an abstract parameter): every per-run value lives in the context.
     """
 
-    NEWTON_STEPS = 20  # at most: the solve stops when a step moves no velocity by NEWTON_TOLERANCE_M_S
+    NEWTON_STEPS = 20  # at most: the solve stops at a step that moves no velocity by NEWTON_FINAL_STEP_M_S
 
     def __init__(
         self, plant, geometry: ChainGeometry, friction: Friction, sgn_smoothing_m_s: float, *, servo_gains=(0.0, 0.0)
@@ -911,13 +920,14 @@ class FrictionForces(LeafSystem):
             other += plant.CalcGravityGeneralizedForces(plant_context)
         # The plant applies gravity and the bias term itself; the extra forces only reach it through this output.
         extra = sum((force(x) for force in known.extra), np.zeros(len(other))) if known.extra else 0.0
-        friction, servo = friction_step(
+        friction, servo, _ = friction_step(
             x,
             other + extra,
             plant.CalcMassMatrix(plant_context),
             self._dt,
             params,
             self.NEWTON_STEPS,
+            NEWTON_FINAL_STEP_M_S,
             command_port.Eval(context),
             power_port.Eval(context),
             self._servo_gains,

@@ -128,16 +128,29 @@ def module_motion(x, geometry: ChainGeometry):
 
 
 @jit
-def wheel_kinematics_kernel(x, joint_in_parent, joint_in_child, wheel_module, wheel_offset, wheel_toe):
-    """wheel_kinematics on the geometry's arrays (compiled; the friction solve and the engine call it)."""
-    phi, _, p, _ = _module_motion(x, joint_in_parent, joint_in_child)
-    nw = wheel_module.shape[0]
+def chain_frames(x, joint_in_parent, joint_in_child):
+    """(e (nm,): each module's heading e^{i phi_k}; p (nm,): its origin; joint (nj,): each joint's position), complex
+    and in the world, from the plant state: the chain p_{k+1} = p_k + R(phi_k) a_k - R(phi_{k+1}) b_k walked once,
+    for a step's wheel Jacobians and modules' inertias alike."""
     nj = joint_in_parent.shape[0]
-    e = np.exp(1j * phi)
-    joint_xy = p[:nj] + e[:nj] * joint_in_parent
+    e = np.exp(1j * np.cumsum(x[2 : 3 + nj]))
+    p = np.empty(nj + 1, dtype=np.complex128)
+    joint = np.empty(nj, dtype=np.complex128)
+    p[0] = x[0] + 1j * x[1]
+    for j in range(nj):
+        joint[j] = p[j] + e[j] * joint_in_parent[j]
+        p[j + 1] = joint[j] - e[j + 1] * joint_in_child[j]
+    return e, p, joint
+
+
+@jit
+def wheel_kinematics_at(frames, wheel_module, wheel_offset, wheel_toe):
+    """wheel_kinematics from the chain's frames (chain_frames): positions, rolling directions, Jacobians."""
+    e, p, joint_xy = frames
+    nw = wheel_module.shape[0]
     position = np.empty(nw, dtype=np.complex128)
     direction = np.empty(nw, dtype=np.complex128)
-    jacobian = np.zeros((nw, 3 + nj), dtype=np.complex128)
+    jacobian = np.zeros((nw, 3 + joint_xy.shape[0]), dtype=np.complex128)
     for w in range(nw):
         k = wheel_module[w]
         position[w] = p[k] + e[k] * wheel_offset[w]
@@ -148,6 +161,12 @@ def wheel_kinematics_kernel(x, joint_in_parent, joint_in_child, wheel_module, wh
         for j in range(k):  # joints 0..k-1 lie ahead of module k and turn it
             jacobian[w, 3 + j] = 1j * (position[w] - joint_xy[j])
     return position, direction, jacobian
+
+
+@jit
+def wheel_kinematics_kernel(x, joint_in_parent, joint_in_child, wheel_module, wheel_offset, wheel_toe):
+    """wheel_kinematics on the geometry's arrays (compiled; the friction solve and the engine call it)."""
+    return wheel_kinematics_at(chain_frames(x, joint_in_parent, joint_in_child), wheel_module, wheel_offset, wheel_toe)
 
 
 @dataclasses.dataclass(frozen=True)

@@ -8,6 +8,7 @@ from rc1_drake.articulated import articulated_matrix, articulated_solve, chain_i
 from rc1_drake.config import Friction
 from rc1_drake.effects import model_setup
 from rc1_drake.engine.dynamics import chain_terms, plant_numbers
+from rc1_drake.kinematics import chain_frames
 from rc1_drake.model import add_rc1_plant, module_inertias, set_payload
 
 
@@ -30,7 +31,7 @@ def test_the_modules_inertias_about_the_head_give_the_plants_mass_matrix():
     for seed in range(3):
         x, _ = _state(seed)
         plant.SetPositionsAndVelocities(context, x)
-        inertia, motion = chain_inertias(x, bodies, jp, jc)
+        inertia, motion = chain_inertias(chain_frames(x, jp, jc), bodies)
         expected = plant.CalcMassMatrix(context)
         np.testing.assert_allclose(articulated_matrix(inertia, np.zeros(16), motion), expected, atol=1e-12)
 
@@ -41,7 +42,7 @@ def test_the_recursion_solves_what_a_dense_factorization_solves_and_refuses_an_i
     bodies = np.column_stack([numbers.masses(), numbers.central_yaw_inertia, numbers.com.real, numbers.com.imag])
     for seed in range(3):
         x, rng = _state(seed)
-        inertia, motion = chain_inertias(x, bodies, jp, jc)
+        inertia, motion = chain_inertias(chain_frames(x, jp, jc), bodies)
         for k in range(len(inertia)):  # a wheel's damping on each module: positive semidefinite, rank 2
             rows = rng.normal(size=(2, 3))
             inertia[k] += rows.T @ np.diag(rng.uniform(0.0, 5.0, 2)) @ rows

@@ -135,6 +135,7 @@ def plant_step(
     servo_gains,
     extra_force,
     plant,
+    final_step,
 ):
     """(x+, servo torque (13,), v*, the force that gives the friction solve's v+ = v + dt M^-1 force) of one
     Diagram step from state x (module docstring)."""
@@ -145,13 +146,14 @@ def plant_step(
     other = -bias
     if gravity_in_plane:
         other = other + gravity
-    friction, servo = friction_step(
+    friction, servo, v_solved = friction_step(
         x,
         other + extra_force,
         M,
         dt,
         params,
         NEWTON_STEPS,
+        final_step,
         servo_command,
         servo_power,
         servo_gains,
@@ -161,7 +163,10 @@ def plant_step(
     tau = -bias + gravity + friction + extra_force  # the plant applies its gravity field itself
     tau[3:] += servo[3:]
     v = x[nv:]
-    v_star = v + dt * spd_solve(M, tau)
+    if gravity_in_plane or not gravity.any():
+        v_star = v_solved  # M (v* - v) = dt tau is the equation the friction solve's v+ satisfies
+    else:  # gravity that the friction solve was not told of
+        v_star = v + dt * spd_solve(M, tau)
     v_next = _limit_solve(x[:nv], v, v_star, M, dt, lower, upper, locked)
     out = np.empty_like(x)
     out[:nv] = x[:nv] + dt * v_next
