@@ -452,18 +452,14 @@ def _step_residual(v_next, laws, momentum_free):
     return laws.mass_damped @ v_next - momentum_free - laws.dt * force, system
 
 
-# A Newton step under 10 um/s ends the solve once taken: the error left is ~step^2 / eps (measured on a replay:
-# 130-1200 step^2, so <= ~1e-7 m/s, 1e-4 of the sgn() smoothing), and a quarter of a step's cost is saved. A run
-# that is differentiated solves on (engine/tangent.py linearizes the converged step: at 1e-5 its columns miss
-# central differences by 3e-4).
-NEWTON_FINAL_STEP_M_S = 1e-5
-TANGENT_FINAL_STEP_M_S = 1e-7
+# A Newton step under 0.1 um/s (1e-4 of the sgn() smoothing) ends the solve once taken: its error is ~step^2 / eps.
+NEWTON_TOLERANCE_M_S = 1e-7
 NEWTON_STALL_M_S = 1e-9  # a backtracked step that moves no velocity by this much: the line search has stalled
 MAX_HALVINGS = 12
 
 
 @jit
-def _implicit_friction_force(laws, mass_matrix, momentum_free, v, newton_steps, final_step):
+def _implicit_friction_force(laws, mass_matrix, momentum_free, v, newton_steps):
     dt, servo_offset, servo_rate, servo_power = laws.dt, laws.servo_offset, laws.servo_rate, laws.servo_power
     # The secant start: each Coulomb term through the origin at its rate at v; the servos as they stand at
     # v, linear where not saturated, a constant torque where saturated.
@@ -476,7 +472,7 @@ def _implicit_friction_force(laws, mass_matrix, momentum_free, v, newton_steps, 
     residual, system = _step_residual(v_next, laws, momentum_free)
     for _ in range(newton_steps):
         step = system_solve(system, laws, residual)
-        if np.abs(step).max() < final_step:  # converged: take the last step, nothing left to check
+        if np.abs(step).max() < NEWTON_TOLERANCE_M_S:  # converged: take the last step, nothing left to check
             v_next = v_next - step
             break
         norm = residual @ residual
@@ -560,9 +556,7 @@ def implicit_friction_force(
         np.zeros((0, 3)),
         dt * np.asarray(joint_damping, dtype=float),
     )
-    force, torque, _ = _implicit_friction_force(
-        laws, mass_matrix, momentum_free, v, newton_steps, TANGENT_FINAL_STEP_M_S
-    )
+    force, torque, _ = _implicit_friction_force(laws, mass_matrix, momentum_free, v, newton_steps)
     return force if servo is None else (force, torque)
 
 
@@ -770,7 +764,6 @@ def friction_step(
     dt,
     params,
     newton_steps,
-    final_step,
     servo_command,
     servo_power,
     servo_gains,
@@ -781,7 +774,7 @@ def friction_step(
         x, other_force, mass_matrix, dt, params, servo_command, servo_power, servo_gains, chain, bodies
     )
     force, servo, v_next = _implicit_friction_force(
-        laws, mass_matrix, momentum_free, x[x.shape[0] // 2 :], newton_steps, final_step
+        laws, mass_matrix, momentum_free, x[x.shape[0] // 2 :], newton_steps
     )
     return force + spring, servo, v_next  # the solve's force leaves out the spring it was given as known
 
@@ -831,7 +824,7 @@ class FrictionForces(LeafSystem):
     forces of the step (KnownForces, an abstract parameter): every per-run value lives in the context.
     """
 
-    NEWTON_STEPS = 20  # at most: the solve stops at a step that moves no velocity by NEWTON_FINAL_STEP_M_S
+    NEWTON_STEPS = 20  # at most: the solve stops when a step moves no velocity by NEWTON_TOLERANCE_M_S
 
     def __init__(
         self, plant, geometry: ChainGeometry, friction: Friction, sgn_smoothing_m_s: float, *, servo_gains=(0.0, 0.0)
@@ -927,7 +920,6 @@ class FrictionForces(LeafSystem):
             self._dt,
             params,
             self.NEWTON_STEPS,
-            NEWTON_FINAL_STEP_M_S,
             command_port.Eval(context),
             power_port.Eval(context),
             self._servo_gains,

@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..friction import NEWTON_FINAL_STEP_M_S, TANGENT_FINAL_STEP_M_S
 from ..kinematics import jit
 from .step import plant_step, plant_terms
 from .tangent import step_tangent
@@ -219,7 +218,6 @@ def advance_run(
     in_plane = model[2] != 0.0
     plant = plant_terms(mass, yaw_inertia, com, gravity_xy, in_plane, lower, upper, locked, chain)
     servo_gains = np.array([gains[0], gains[2]])
-    final_step = TANGENT_FINAL_STEP_M_S if sens.shape[0] else NEWTON_FINAL_STEP_M_S
     for k in range(k0, k1):
         t = k * dt if k > k0 or np.isnan(t_first) else t_first
         theta, theta_dot, error = _command(t, x, source, gait, heading, z_heading, breaks, values, rates, segment)
@@ -233,7 +231,6 @@ def advance_run(
             servo_gains,
             extra_force,
             plant,
-            final_step,
         )
         while log_next[0] < log_steps.shape[0] and log_steps[log_next[0]] == k:
             row = log_next[0]
@@ -255,7 +252,6 @@ def advance_run(
                     servo_gains,
                     extra_force,
                     plant,
-                    final_step,
                 )[1]
             log_next[0] += 1
         last_torque[:] = torque

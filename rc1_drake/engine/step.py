@@ -135,7 +135,6 @@ def plant_step(
     servo_gains,
     extra_force,
     plant,
-    final_step,
 ):
     """(x+, servo torque (13,), v*, the force that gives the friction solve's v+ = v + dt M^-1 force) of one
     Diagram step from state x (module docstring)."""
@@ -153,7 +152,6 @@ def plant_step(
         dt,
         params,
         NEWTON_STEPS,
-        final_step,
         servo_command,
         servo_power,
         servo_gains,
