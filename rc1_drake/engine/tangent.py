@@ -40,7 +40,7 @@ from ..friction import (
     lu_factor_solve,
     spd_solve,
 )
-from ..kinematics import jit
+from ..kinematics import chain_frames, jit
 from .dynamics import chain_terms
 from .step import LIMIT_BETA, limit_constraints, rigid_regularization
 
@@ -126,17 +126,9 @@ def chain_tangent(x, dx, w, mass, yaw_inertia, com, joint_in_parent, joint_in_ch
 def wheel_frame(x, joint_in_parent, joint_in_child, wheel_module, wheel_offset, wheel_toe):
     """The wheels' local Jacobians L_w = conj(direction_w) J_w (rows: v_long + i v_lat, friction.friction_step)
     at x, (W, 16) complex, and the chain's terms wheel_local_direction takes: (local, e, p, joint_xy)."""
-    nj = joint_in_parent.shape[0]
-    nv = nj + 3
+    nv = joint_in_parent.shape[0] + 3
     nw = wheel_module.shape[0]
-    phi = np.cumsum(x[2:nv])
-    e = np.exp(1j * phi)
-    p = np.empty(nj + 1, dtype=np.complex128)
-    joint_xy = np.empty(nj, dtype=np.complex128)
-    p[0] = x[0] + 1j * x[1]
-    for j in range(nj):
-        joint_xy[j] = p[j] + e[j] * joint_in_parent[j]
-        p[j + 1] = joint_xy[j] - e[j + 1] * joint_in_child[j]
+    e, p, joint_xy = chain_frames(x, joint_in_parent, joint_in_child)
     local = np.zeros((nw, nv), dtype=np.complex128)
     for w in range(nw):
         k = wheel_module[w]
