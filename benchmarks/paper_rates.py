@@ -46,6 +46,7 @@ from doc_blocks import REPO_ROOT, append_row, check_block, load_rows, rows_file,
 
 from rc1_drake.config import Friction, Stop
 from rc1_drake.diagnose import diagnose
+from rc1_drake.diagnose import fit as fit_module
 from rc1_drake.diagnose.thresholds import Thresholds
 from rc1_drake.diagnose.verdict import RATES_FILE, verdict_rates
 from rc1_drake.measurements import load_campaign
@@ -67,6 +68,9 @@ VARIANTS = {
     # The replay's own error from 4 draws a trial instead of 6 (84 of the shipped diagnosis's 920 replays): not
     # landed, docs/findings.md 2026-11-28 (17).
     "four-draws": {"input_noise_samples": 4},
+    # The physics' covariance the larger of the sandwich's and the trial jackknife's in every direction, not the one
+    # of larger trace (diagnose/fit.py JACKKNIFE_RULE; docs/findings.md 2026-11-28 (19)).
+    "jackknife-by-direction": {"jackknife_rule": "direction"},
 }
 
 
@@ -186,7 +190,7 @@ def one(cell: Cell, seed: int, args) -> dict:
         probe_study=False,
         start_rates="fit",
         checkpoint=args.out / "checkpoints" / folder.name,  # one for every variant: a replay's key is its job
-        **VARIANTS[args.variant],
+        **{k: v for k, v in VARIANTS[args.variant].items() if k != "jackknife_rule"},
     )
     return {
         "cell": cell.label,
@@ -386,6 +390,7 @@ def main():
         check_block(PAGE, BLOCK, WRITER)
         check_block(README, SUMMARY, WRITER)
     args.out.mkdir(parents=True, exist_ok=True)
+    fit_module.JACKKNIFE_RULE = VARIANTS[args.variant].get("jackknife_rule", fit_module.JACKKNIFE_RULE)
     rows = [r for r in load_rows(rows_file("paper_rates")) if r["trials_per_case"] == args.trials_per_case]
     done = {(r["cell"], r["seed"]) for r in rows if r.get("variant", "default") == args.variant}
     jobs = [(c, s) for s in seed_list for c in cells if (c.label, s) not in done]

@@ -8,10 +8,15 @@ import math
 import numpy as np
 
 from ..sysid.optimize import bounded_step
-from ..sysid.stats import channel_variances
+from ..sysid.stats import channel_variances, larger_covariance
 from .linearize import Linearization, moved
 
 TRUST_STEPS = 4.0  # an effect coordinate's linear fit moves at most this many probe steps per round
+
+# The physics' covariance where the trial jackknife exceeds the sandwich: "trace", the one of larger trace (a trace
+# adds units: it flipped the shipped toe's interval by a quarter on replays moved by 1e-7 m, docs/findings.md);
+# "direction", the larger of the two in every direction (stats.larger_covariance), judged by benchmarks/paper_rates.py.
+JACKKNIFE_RULE = "trace"
 
 
 def bounded_least_squares(x, r, lower, upper) -> np.ndarray:
@@ -34,8 +39,8 @@ class Fit:
     steps: np.ndarray  # d from the linearization point
     standard_errors: np.ndarray
     covariance: np.ndarray
-    # the sandwich's (every row independent, with its channel's residual variance and the input noise), where the
-    # trial jackknife took the physics' block: how well the noise lets a coordinate be seen, whether or not the
+    # the sandwich's (every row independent, with its channel's residual variance and the input noise), before the
+    # trial jackknife widened the physics' block: how well the noise lets a coordinate be seen, whether or not the
     # trials agree on the linear model
     noise_standard_errors: np.ndarray
     residual: list[np.ndarray]  # per trial, r0 + X d (linear prediction, all trials)
@@ -115,7 +120,7 @@ def _start_rows_variance(lin: Linearization, coords, k: int, d) -> float:
 def fit(lin: Linearization, names: list[str]) -> Fit:
     """Bounded weighted linear least squares over `names` (each trial's rows times its weight; a trial's
     start, where among them, fitted to its first START_FIT_S only: _solve), its covariance (the sandwich
-    with channel variances and input noise, or the trial jackknife where that is larger), and
+    with channel variances and input noise, widened to the trial jackknife's in every direction where that is larger), and
     leave-one-trial-out predictions."""
     coords = [lin.coordinate(n) for n in names]
     reach = np.array([math.inf if c.owner == "friction" else TRUST_STEPS * c.step for c in coords])
@@ -164,7 +169,9 @@ def fit(lin: Linearization, names: list[str]) -> Fit:
         steps = np.array(held_steps)[:, physics]
         jackknife = (len(steps) - 1) / len(steps) * (steps - steps.mean(axis=0)).T @ (steps - steps.mean(axis=0))
         block = np.ix_(physics, physics)
-        if np.trace(jackknife) > np.trace(cov[block]):
+        if JACKKNIFE_RULE == "direction":
+            cov[block] = larger_covariance(cov[block], jackknife)
+        elif np.trace(jackknife) > np.trace(cov[block]):
             cov[block] = jackknife
     se = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     m = len(e)

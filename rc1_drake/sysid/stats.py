@@ -42,6 +42,26 @@ def sandwich(jac, spread) -> tuple:
     return inv @ jac.T @ spread @ jac @ inv, null
 
 
+def larger_covariance(s, j) -> np.ndarray:
+    """A covariance at least `s` and at least `j` in every direction, and equal to the larger where one is: with X
+    from the generalized eigenproblem j X = s X L (X^T s X = 1), X^-T max(L, 1) X^-1. Unchanged by the coordinates'
+    units (each scaled by its larger variance; a tiny ridge makes a singular `s` invertible), symmetric in its two
+    arguments, and continuous in both, where the larger of the two traces flips on a change of units."""
+    s, j = np.asarray(s, dtype=float), np.asarray(j, dtype=float)
+    scale = np.sqrt(np.maximum(np.diag(s), np.diag(j)))
+    scale = np.where(scale > 0.0, scale, 1.0)
+    s_n, j_n = s / np.outer(scale, scale), j / np.outer(scale, scale)
+    w, u = np.linalg.eigh(s_n + 1e-12 * np.eye(len(s)))
+    root_inv = u / np.sqrt(w)  # s^-1/2 up to a rotation
+    lam, v = np.linalg.eigh(root_inv.T @ j_n @ root_inv)
+    if lam.max() <= 1.0:
+        return s.copy()
+    if lam.min() >= 1.0:
+        return j.copy()
+    back = (u * np.sqrt(w)) @ v  # X^-T
+    return np.outer(scale, scale) * ((back * np.maximum(lam, 1.0)) @ back.T)
+
+
 @dataclasses.dataclass
 class Uncertainty:
     names: list[str]
