@@ -23,6 +23,7 @@ import pytest
 
 from rc1_drake.config import FRICTION_NAMES, Z95, Friction, Gait, Stop
 from rc1_drake.diagnose import THRESHOLDS, diagnose
+from rc1_drake.diagnose import fit as fit_module
 from rc1_drake.diagnose import verdict as verdicts
 from rc1_drake.diagnose.coordinates import START, effect_coordinates, friction_coordinates, model_at
 from rc1_drake.diagnose.decide import decide
@@ -45,7 +46,7 @@ from rc1_drake.synthesize import Case, Noise, noise_free_twin, synthesize_campai
 from rc1_drake.sysid.evaluate import Evaluator
 from rc1_drake.sysid.input_noise import replay_error
 from rc1_drake.sysid.parameters import Parameter
-from rc1_drake.sysid.stats import wald_p
+from rc1_drake.sysid.stats import larger_covariance, wald_p
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -141,11 +142,13 @@ def test_fit_recovers_a_linear_truth_and_its_held_out_predictions_are_exact():
     assert only_a.held_out_sum_of_squares() > 1.0  # the missing column shows on held-out trials
 
 
-def test_trials_that_disagree_widen_the_interval_by_the_jackknife_but_not_the_noises_standard_error():
+@pytest.mark.parametrize("rule", ["trace", "direction"])
+def test_trials_that_disagree_widen_the_interval_by_the_jackknife_but_not_the_noises_standard_error(rule, monkeypatch):
     """Three trials say b = 1, a fourth says b = -3, each within noise 0.05: the jackknife over trials sees the
     disagreement as a trial's, the sandwich (rows independent) as rows' scatter only. The interval takes the
-    jackknife; how well the noise lets b be seen (Thresholds.detectable_by_noise) the sandwich. Trials that agree:
-    the two are one."""
+    jackknife (by either fit.JACKKNIFE_RULE); how well the noise lets b be seen (Thresholds.detectable_by_noise) the
+    sandwich. Trials that agree: the two are one."""
+    monkeypatch.setattr(fit_module, "JACKKNIFE_RULE", rule)
     rng = np.random.default_rng(3)
     a, b = rng.normal(size=(4, 12)), rng.normal(size=(4, 12))
     noise = 0.05 * rng.normal(size=(4, 12))
@@ -157,6 +160,30 @@ def test_trials_that_disagree_widen_the_interval_by_the_jackknife_but_not_the_no
     agreed = fit(agreeing, ["b"])
     assert agreed.values[0] == pytest.approx(1.0, abs=0.05)
     assert agreed.standard_errors[0] == agreed.noise_standard_errors[0]
+
+
+def test_the_larger_covariance_bounds_both_in_every_direction_whatever_the_units():
+    """stats.larger_covariance(S, J): at least S and at least J in every direction (M - S, M - J positive
+    semidefinite); S where J is smaller everywhere and J where larger; the same whichever comes first; unchanged by
+    the coordinates' units (D S D, D J D -> D M D), which a choice by trace is not; and continuous: two covariances
+    of equal trace and different shapes give each coordinate the larger of its two variances, or more."""
+    rng = np.random.default_rng(5)
+    for _ in range(50):
+        n = int(rng.integers(1, 5))
+        a, b = rng.normal(size=(n, n)), rng.normal(size=(n, n))
+        s, j = a @ a.T, b @ b.T
+        m = larger_covariance(s, j)
+        tol = 1e-9 * np.abs(m).max()
+        assert np.linalg.eigvalsh(m - s).min() > -tol and np.linalg.eigvalsh(m - j).min() > -tol
+        np.testing.assert_allclose(larger_covariance(j, s), m, rtol=1e-7, atol=tol)
+        d = np.diag(10.0 ** rng.uniform(-3, 3, n))
+        np.testing.assert_allclose(larger_covariance(d @ s @ d, d @ j @ d), d @ m @ d, rtol=1e-6, atol=tol)
+        np.testing.assert_array_equal(larger_covariance(s, 0.5 * s), s)
+        np.testing.assert_array_equal(larger_covariance(s, 2.0 * s), 2.0 * s)
+    s, j = np.diag([1.0, 0.01]), np.diag([0.02, 0.99])  # traces 1.01 and 1.01: a trace picks one, and by a hair
+    np.testing.assert_allclose(larger_covariance(s, j), np.diag([1.0, 0.99]))
+    singular = larger_covariance(np.diag([1.0, 0.0]), np.array([[0.5, 0.1], [0.1, 0.3]]))  # a coordinate S cannot see
+    assert singular[1, 1] == pytest.approx(0.3) and singular[0, 0] >= 1.0
 
 
 def test_a_trials_start_is_fitted_to_its_start_rows_and_the_physics_to_all_rows():

@@ -120,7 +120,7 @@ def _start_rows_variance(lin: Linearization, coords, k: int, d) -> float:
 def fit(lin: Linearization, names: list[str]) -> Fit:
     """Bounded weighted linear least squares over `names` (each trial's rows times its weight; a trial's
     start, where among them, fitted to its first START_FIT_S only: _solve), its covariance (the sandwich
-    with channel variances and input noise, widened to the trial jackknife's in every direction where that is larger), and
+    with channel variances and input noise, or the trial jackknife's where larger: JACKKNIFE_RULE), and
     leave-one-trial-out predictions."""
     coords = [lin.coordinate(n) for n in names]
     reach = np.array([math.inf if c.owner == "friction" else TRUST_STEPS * c.step for c in coords])
