@@ -2,7 +2,8 @@
 that the model discovery starts from lacks.
 
     python benchmarks/discovery.py [--seeds 0-5] [--calibrate 0-2] [--cells CELL,...] [--workers 2] [--angles]
-                                   [--design short|paper] [--out DIR] [--markdown] [--table-only]
+                                   [--design short|paper] [--path-weights case|whitened] [--out DIR]
+                                   [--markdown] [--table-only]
 
 Every campaign (--design short): two no-failure and two joint-7 trials of 2 s, with the synthesizer's sensor noise
 and start spread, made by this model or by reference.py (another model: kinematic joints, its own limits, the forces
@@ -24,7 +25,8 @@ table into docs/diagnosis.md. --angles: discovery with the working joints' angle
 diagnose --discover --angles`), its rows (discovery-angles) and table in a block of their own. --design paper: the
 paper's 21 trials of 10 s (the shipped campaign's design: no failure, joints 7, 13, 7 with a bias, 2), by default the
 nulls and the tether only (PAPER_CELLS: about half an hour a campaign on 2 cores with the angles); its rows and table
-its own too."""
+its own too. --path-weights whitened: the path rows weighed by each trial's own input-noise covariance
+(discover.PATH_WEIGHTS), judged against the default: its rows apart (NAME-whitened), its table block its own."""
 
 import argparse
 import dataclasses
@@ -36,6 +38,7 @@ from calibrate import seeds as parse_seeds  # benchmarks/ is on the path when th
 from doc_blocks import REPO_ROOT, append_row, check_block, load_rows, rows_file, write_block
 
 from rc1_drake.config import Friction, Stop
+from rc1_drake.diagnose import discover as discover_module
 from rc1_drake.diagnose.discover import MIN_FALL, MIN_GAIN, best_gain, discover_campaign, passes_gate
 from rc1_drake.measurements import load_campaign
 from rc1_drake.synthesize import PAPER_DESIGN, Case, synthesize_campaign
@@ -177,6 +180,12 @@ def main():
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--angles", action="store_true", help="discovery with the angles (module docstring)")
     parser.add_argument("--design", choices=DESIGNS, default="short", help="the campaigns' trials (DESIGNS)")
+    parser.add_argument(
+        "--path-weights",
+        choices=("case", "whitened"),
+        default=discover_module.PATH_WEIGHTS,
+        help="how a trial's path rows weigh (discover.PATH_WEIGHTS); not the default's: rows apart",
+    )
     parser.add_argument("--out", type=Path, help="campaigns (default benchmarks/out/<block>; rows: benchmarks/rows)")
     parser.add_argument("--markdown", action="store_true", help="write the table into docs/diagnosis.md")
     parser.add_argument("--table-only", action="store_true", help="print (and write) the table of the rows so far")
@@ -189,8 +198,11 @@ def main():
         seed_list, calibration = parse_seeds(args.seeds), set(parse_seeds(args.calibrate))
     except ValueError:
         raise SystemExit(f"--seeds/--calibrate: cannot read {args.seeds!r} / {args.calibrate!r} (e.g. 0-5)") from None
+    discover_module.PATH_WEIGHTS, variant = args.path_weights, args.path_weights != discover_module.PATH_WEIGHTS
     name = "discovery" + ("-angles" if args.angles else "") + ("-paper" if args.design == "paper" else "")
+    name += f"-{args.path_weights}" if variant else ""
     flags = ("--angles " if args.angles else "") + ("--design paper " if args.design == "paper" else "")
+    flags += f"--path-weights {args.path_weights} " if variant else ""
     block, writer = f"{name}-rates-table", f"benchmarks/discovery.py {flags}--markdown"
     if args.markdown:
         check_block(PAGE, block, writer)

@@ -82,13 +82,31 @@ def test_a_trials_path_rows_weigh_as_in_the_diagnosis_and_its_angle_rows_as_thei
     one case pooled: (3 + 1) / 2 = 2); the angle rows after them weigh 1."""
     from types import SimpleNamespace
 
-    from rc1_drake.diagnose.discover import _row_weights
+    from rc1_drake.diagnose.discover import _row_weights, _weighed
 
     trials = [SimpleNamespace(case="joint 2"), SimpleNamespace(case="joint 2"), SimpleNamespace(case="none")]
     blocks = [3.0 * np.eye(4), np.eye(4), np.zeros((3, 3))]
-    weights = _row_weights(trials, blocks, [2, 2, 0])
-    assert np.allclose(weights[0], [3**-0.5] * 4 + [1, 1]) and np.allclose(weights[1], weights[0])
-    assert np.allclose(weights[2], np.ones(3))
+    weights = _row_weights(trials, blocks)
+    assert np.allclose(weights[0], 3**-0.5 * np.eye(4)) and np.allclose(weights[1], weights[0])
+    assert np.allclose(weights[2], np.eye(3))
+    residual, jacobian = np.arange(6.0), np.ones((6, 2))  # four path rows, then two angle rows
+    (r, jac), *_ = _weighed([(residual, jacobian)], weights[:1])
+    assert np.allclose(r, [0, 3**-0.5, 2 * 3**-0.5, 3**0.5, 4, 5]) and np.allclose(jac[4:], 1.0)
+
+
+def test_whitened_path_rows_weigh_a_misfit_along_the_input_noise_as_that_noise(monkeypatch):
+    """Hand-computed, PATH_WEIGHTS "whitened": a trial whose replays scatter along one direction u with variance 8
+    (C = 8 u u^T) weighs a misfit along u by 1 / sqrt(1 + 8) = 1/3 and one across it by 1; the weighed covariance
+    W C W^T is 8/9 along u, what the floor counts."""
+    from types import SimpleNamespace
+
+    from rc1_drake.diagnose import discover as module
+
+    monkeypatch.setattr(module, "PATH_WEIGHTS", "whitened")
+    u, across = np.array([1.0, 1.0, 0.0]) / math.sqrt(2), np.array([1.0, -1.0, 2.0]) / math.sqrt(6)
+    [w] = module._row_weights([SimpleNamespace(case="joint 2")], [8.0 * np.outer(u, u)])
+    assert np.allclose(w @ u, u / 3) and np.allclose(w @ across, across)
+    assert np.trace(w @ (8.0 * np.outer(u, u)) @ w.T) == pytest.approx(8 / 9)
 
 
 def test_the_input_noise_floor_is_at_most_what_a_null_campaign_costs_beyond_its_sensors(tmp_path):

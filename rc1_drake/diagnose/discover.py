@@ -48,6 +48,9 @@ SIZES = (1, 2, 3, 4)  # how many terms a sparse model may have: a missing effect
 # round-trip tests, not yet on seeded campaigns (issue 43's rates).
 MIN_FALL = 0.25
 MIN_GAIN = 3.84
+# How a trial's path rows weigh (_row_weights): "case", by its case's mean input-noise variance; "whitened", by its
+# own input-noise covariance (judged by benchmarks/discovery.py --path-weights whitened).
+PATH_WEIGHTS = "case"
 REFINEMENTS = 2  # Gauss-Newton steps on the surviving terms, by replay
 HALVINGS = 4  # of a step whose runs fail or whose cost rises
 MATCH_COSINE = 0.98  # a term "matches" a library coordinate whose column is this parallel to its prediction
@@ -204,8 +207,8 @@ def discover(
         [(t, friction, effects, INPUT_NOISE_SAMPLES, k) for k, t in enumerate(trials)],
         "the replays' input noise",
     )
-    weights = _row_weights(trials, blocks, counts)
-    blocks = [w[0] ** 2 * b for w, b in zip(weights, blocks, strict=True)]  # the path rows' covariances, weighed
+    weights = _row_weights(trials, blocks)
+    blocks = [w @ b @ w.T for w, b in zip(weights, blocks, strict=True)]  # the path rows' covariances, weighed
     parts = evaluator.map(
         corrected_and_jacobian,
         [(t, friction, effects, tuple(keys), view) for t in trials],
@@ -235,7 +238,7 @@ def discover(
     library_columns = _library_columns(trials, friction, effects, library, evaluator, weights, _View(Servo(), angles))
     before = sum(float(x @ x) for x in r)
     held = _held_out_by_replay(trials, friction, model, values, fitted, evaluator, view)
-    held = [x * w for x, w in zip(held, weights, strict=True)]
+    held = [_weigh(w, x) for x, w in zip(held, weights, strict=True)]
     after = sum(float(x @ x) for x in held)
     angles_before, angles_after = (
         sum(float(x[len(x) - n :] @ x[len(x) - n :]) for x, n in zip(rs, counts, strict=True)) for rs in (r, held)
@@ -449,17 +452,32 @@ def _without_zeros(values: dict, fitted: tuple, gains: int) -> tuple:
     return {keys[j]: values[keys[j]] for j in keep}, (jacobian[:, columns], residual, rows)
 
 
-def _row_weights(trials, blocks, counts) -> list:
-    """Each trial's rows' weights: its path rows' the diagnosis's (linearize.trial_weights, a scalar feasible
-    generalized least squares by its case's input-noise variance: a joint-2 failure's chaotic replay weighs less), its
-    `counts` angle rows' 1 (their noise is the potentiometers', white, and each is standardized by it)."""
-    path = trial_weights(trials, blocks)
-    return [np.r_[np.full(len(b), w), np.ones(n)] for w, b, n in zip(path, blocks, counts, strict=True)]
+def _row_weights(trials, blocks) -> list:
+    """Each trial's path rows' weight matrix W (its angle rows after them weigh 1: their noise is the
+    potentiometers', white, and each is standardized by it), by PATH_WEIGHTS: "case", the diagnosis's
+    (linearize.trial_weights, a scalar feasible generalized least squares by its case's input-noise variance: a
+    joint-2 failure's chaotic replay weighs less); "whitened", (1 + C)^-1/2 with C the trial's own input-noise
+    covariance (`blocks`), a generalized least squares in which a replay's misfit along its noise's directions
+    weighs as that noise and the rest as the sensors' (standardized to 1)."""
+    if PATH_WEIGHTS == "case":
+        return [w * np.eye(len(b)) for w, b in zip(trial_weights(trials, blocks), blocks, strict=True)]
+    whiteners = []
+    for b in blocks:
+        lam, u = np.linalg.eigh(b) if len(b) else (np.zeros(0), np.zeros((0, 0)))
+        whiteners.append((u / np.sqrt(1.0 + np.clip(lam, 0.0, None))) @ u.T)
+    return whiteners
+
+
+def _weigh(w, a):
+    """`a` (a trial's residual, or its Jacobian) with its first len(w) rows, the path's, times W; the rest kept."""
+    out = np.array(a, dtype=float)
+    out[: len(w)] = w @ out[: len(w)]
+    return out
 
 
 def _weighed(parts, weights) -> list:
-    """Each trial's (residual, Jacobian) with its rows multiplied by their weights (_row_weights)."""
-    return [(r * w, jac * w[:, None]) for (r, jac), w in zip(parts, weights, strict=True)]
+    """Each trial's (residual, Jacobian) with its rows weighed (_row_weights)."""
+    return [(_weigh(w, r), _weigh(w, jac)) for (r, jac), w in zip(parts, weights, strict=True)]
 
 
 def _standard_errors(fitted, blocks) -> np.ndarray:
