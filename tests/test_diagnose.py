@@ -162,6 +162,27 @@ def test_trials_that_disagree_widen_the_interval_by_the_jackknife_but_not_the_no
     assert agreed.standard_errors[0] == agreed.noise_standard_errors[0]
 
 
+def test_by_direction_the_fits_covariance_bounds_the_jackknife_and_each_noise_standard_error(monkeypatch):
+    """Two coordinates, the trials agreeing on a and split on b (three say 1, a fourth -3): by JACKKNIFE_RULE
+    "direction" the physics' covariance is at least the trial jackknife's in every direction (computed here from the
+    fit's leave-one-trial-out steps) and each standard error at least the noise's, where a choice of the whole block
+    by trace hands it the jackknife's alone."""
+    rng = np.random.default_rng(4)
+    a, b = rng.normal(size=(4, 12)), rng.normal(size=(4, 12))
+    noise = 0.05 * rng.normal(size=(4, 12))
+    says = np.array([1.0, 1.0, 1.0, -3.0])
+    lin = _linearization({"a": list(a), "b": list(b)}, list(-a - says[:, None] * b + noise), noise_sd=0.05)
+    monkeypatch.setattr(fit_module, "JACKKNIFE_RULE", "direction")
+    fitted = fit(lin, ["a", "b"])
+    steps = np.array(fitted.held_out_steps)
+    jackknife = 0.75 * (steps - steps.mean(axis=0)).T @ (steps - steps.mean(axis=0))
+    assert np.linalg.eigvalsh(fitted.covariance - jackknife).min() > -1e-12 * np.abs(jackknife).max()
+    assert np.all(fitted.standard_errors >= fitted.noise_standard_errors * (1 - 1e-9))
+    monkeypatch.setattr(fit_module, "JACKKNIFE_RULE", "trace")
+    by_trace = fit(lin, ["a", "b"])
+    assert np.allclose(by_trace.covariance, jackknife)  # the split on b made the whole block the jackknife's
+
+
 def test_the_larger_covariance_bounds_both_in_every_direction_whatever_the_units():
     """stats.larger_covariance(S, J): at least S and at least J in every direction (M - S, M - J positive
     semidefinite); S where J is smaller everywhere and J where larger; the same whichever comes first; unchanged by

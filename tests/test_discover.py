@@ -91,7 +91,8 @@ def test_a_trials_path_rows_weigh_as_in_the_diagnosis_and_its_angle_rows_as_thei
     assert np.allclose(weights[2], np.eye(3))
     residual, jacobian = np.arange(6.0), np.ones((6, 2))  # four path rows, then two angle rows
     (r, jac), *_ = _weighed([(residual, jacobian)], weights[:1])
-    assert np.allclose(r, [0, 3**-0.5, 2 * 3**-0.5, 3**0.5, 4, 5]) and np.allclose(jac[4:], 1.0)
+    assert np.allclose(r, [0, 3**-0.5, 2 * 3**-0.5, 3**0.5, 4, 5])
+    assert np.allclose(jac[:4], 3**-0.5) and np.allclose(jac[4:], 1.0)
 
 
 def test_whitened_path_rows_weigh_a_misfit_along_the_input_noise_as_that_noise(monkeypatch):
@@ -107,6 +108,10 @@ def test_whitened_path_rows_weigh_a_misfit_along_the_input_noise_as_that_noise(m
     [w] = module._row_weights([SimpleNamespace(case="joint 2")], [8.0 * np.outer(u, u)])
     assert np.allclose(w @ u, u / 3) and np.allclose(w @ across, across)
     assert np.trace(w @ (8.0 * np.outer(u, u)) @ w.T) == pytest.approx(8 / 9)
+    residual = np.r_[3.0 * u + across, 7.0]  # three path rows, then an angle row
+    (r, jac), *_ = module._weighed([(residual, np.vstack([np.c_[u, across], [[0.0, 1.0]]]))], [w])
+    assert np.allclose(r, np.r_[u + across, 7.0])
+    assert np.allclose(jac[:3, 0], u / 3) and np.allclose(jac[:3, 1], across) and np.allclose(jac[3], [0.0, 1.0])
 
 
 def test_the_input_noise_floor_is_at_most_what_a_null_campaign_costs_beyond_its_sensors(tmp_path):

@@ -11,7 +11,8 @@ by leaving one trial out: the fewest whose held-out cost is within one standard 
 unless it removes MIN_GAIN and MIN_FALL of the held-out cost without terms beyond the noise floor: what the rows cost at
 the truth from the noise discovery measures (the replays' input noise, resampled; the angles' count). The camera's noise
 is not in it (its stated sigma is a scale, not a measurement): the gate errs toward no term. A trial's path rows weigh
-as in the diagnosis's fits (linearize.trial_weights): a chaotic replay's misfit counts as its noise.
+as in the diagnosis's fits (linearize.trial_weights), or by the trial's own input-noise covariance (PATH_WEIGHTS): a
+chaotic replay's misfit counts as its noise.
 
 With `angles`, each trial also contributes its working joints' measured angles against the model's servos driven
 by the trial's command (sysid.residual.angle_residual: a servo's tracking error is its load, which the kinematic
@@ -214,6 +215,8 @@ def discover(
         [(t, friction, effects, tuple(keys), view) for t in trials],
         "the discrepancy's columns (replays and twins)",
     )
+    if any(len(p[0]) != len(w) + n for p, w, n in zip(parts, weights, counts, strict=True)):
+        raise Rc1Error("discovery: a trial's residual rows are not its path rows and its angle rows")
     parts = _weighed(parts, weights)
     r = [p[0] for p in parts]
     columns = [p[1][:, : len(keys)] for p in parts]
@@ -485,7 +488,7 @@ def _standard_errors(fitted, blocks) -> np.ndarray:
     term), S each channel's variance (sysid.stats.channel_variances) plus the covariance the angle noise in the
     replays' input causes (`blocks`: each trial's path rows', weighed, at the model without the terms, which move it
     little): as white residuals, the interval of a failed joint's bias on a noisy campaign missed the truth
-    (docs/findings.md)."""
+    (docs/findings.md). Channels by row position: whitened path rows mix a trial's channels, each standardized alike."""
     jac, residual, sizes = fitted
     # The angle rows (after a trial's path rows) follow no replay: their noise is the potentiometers', white.
     channels = np.concatenate([residual_channels(np.zeros(n), n - len(b)) for b, n in zip(blocks, sizes, strict=True)])

@@ -51,7 +51,8 @@ def larger_covariance(s, j) -> np.ndarray:
     scale = np.sqrt(np.maximum(np.diag(s), np.diag(j)))
     scale = np.where(scale > 0.0, scale, 1.0)
     s_n, j_n = s / np.outer(scale, scale), j / np.outer(scale, scale)
-    w, u = np.linalg.eigh(s_n + 1e-12 * np.eye(len(s)))
+    w, u = np.linalg.eigh(s_n)
+    w = np.maximum(w, 0.0) + 1e-12  # round-off may leave a sandwich a hair indefinite
     root_inv = u / np.sqrt(w)  # s^-1/2 up to a rotation
     lam, v = np.linalg.eigh(root_inv.T @ j_n @ root_inv)
     if lam.max() <= 1.0:
