@@ -198,7 +198,8 @@ def main():
         seed_list, calibration = parse_seeds(args.seeds), set(parse_seeds(args.calibrate))
     except ValueError:
         raise SystemExit(f"--seeds/--calibrate: cannot read {args.seeds!r} / {args.calibrate!r} (e.g. 0-5)") from None
-    discover_module.PATH_WEIGHTS, variant = args.path_weights, args.path_weights != discover_module.PATH_WEIGHTS
+    variant = args.path_weights != discover_module.PATH_WEIGHTS  # not the default's: rows and table apart
+    discover_module.PATH_WEIGHTS = args.path_weights
     name = "discovery" + ("-angles" if args.angles else "") + ("-paper" if args.design == "paper" else "")
     name += f"-{args.path_weights}" if variant else ""
     flags = ("--angles " if args.angles else "") + ("--design paper " if args.design == "paper" else "")
