@@ -2,7 +2,7 @@
 that the model discovery starts from lacks.
 
     python benchmarks/discovery.py [--seeds 0-5] [--calibrate 0-2] [--cells CELL,...] [--workers 2] [--angles]
-                                   [--design short|paper] [--path-weights case|whitened] [--out DIR]
+                                   [--design short|paper] [--path-weights whitened|case] [--out DIR]
                                    [--markdown] [--table-only]
 
 Every campaign (--design short): two no-failure and two joint-7 trials of 2 s, with the synthesizer's sensor noise
@@ -25,8 +25,8 @@ table into docs/diagnosis.md. --angles: discovery with the working joints' angle
 diagnose --discover --angles`), its rows (discovery-angles) and table in a block of their own. --design paper: the
 paper's 21 trials of 10 s (the shipped campaign's design: no failure, joints 7, 13, 7 with a bias, 2), by default the
 nulls and the tether only (PAPER_CELLS: about half an hour a campaign on 2 cores with the angles); its rows and table
-its own too. --path-weights whitened: the path rows weighed by each trial's own input-noise covariance
-(discover.PATH_WEIGHTS), judged against the default: its rows apart (NAME-whitened), its table block its own."""
+its own too. --path-weights case: the path rows weighed by their case's scalar, as the diagnosis's fits, instead of
+each trial's own input-noise covariance (discover.PATH_WEIGHTS): its rows apart (NAME-case), its table block its own."""
 
 import argparse
 import dataclasses
@@ -182,7 +182,7 @@ def main():
     parser.add_argument("--design", choices=DESIGNS, default="short", help="the campaigns' trials (DESIGNS)")
     parser.add_argument(
         "--path-weights",
-        choices=("case", "whitened"),
+        choices=("whitened", "case"),
         default=discover_module.PATH_WEIGHTS,
         help="how a trial's path rows weigh (discover.PATH_WEIGHTS); not the default's: rows apart",
     )

@@ -77,13 +77,15 @@ def test_the_fall_is_taken_of_the_error_beyond_the_noise_floor():
     assert found.angle_fall == 0.0  # no angle rows counted: angles_before 0 is not beyond their noise
 
 
-def test_a_trials_path_rows_weigh_as_in_the_diagnosis_and_its_angle_rows_as_their_noise():
-    """Hand-computed: path rows weigh 1 / sqrt(1 + v), v the case's mean input-noise variance per row (two trials of
-    one case pooled: (3 + 1) / 2 = 2); the angle rows after them weigh 1."""
+def test_a_trials_path_rows_weigh_as_in_the_diagnosis_and_its_angle_rows_as_their_noise(monkeypatch):
+    """Hand-computed, PATH_WEIGHTS "case": path rows weigh 1 / sqrt(1 + v), v the case's mean input-noise variance
+    per row (two trials of one case pooled: (3 + 1) / 2 = 2); the angle rows after them weigh 1."""
     from types import SimpleNamespace
 
+    from rc1_drake.diagnose import discover as module
     from rc1_drake.diagnose.discover import _row_weights, _weighed
 
+    monkeypatch.setattr(module, "PATH_WEIGHTS", "case")
     trials = [SimpleNamespace(case="joint 2"), SimpleNamespace(case="joint 2"), SimpleNamespace(case="none")]
     blocks = [3.0 * np.eye(4), np.eye(4), np.zeros((3, 3))]
     weights = _row_weights(trials, blocks)
@@ -96,9 +98,9 @@ def test_a_trials_path_rows_weigh_as_in_the_diagnosis_and_its_angle_rows_as_thei
 
 
 def test_whitened_path_rows_weigh_a_misfit_along_the_input_noise_as_that_noise(monkeypatch):
-    """Hand-computed, PATH_WEIGHTS "whitened": a trial whose replays scatter along one direction u with variance 8
-    (C = 8 u u^T) weighs a misfit along u by 1 / sqrt(1 + 8) = 1/3 and one across it by 1; the weighed covariance
-    W C W^T is 8/9 along u, what the floor counts."""
+    """Hand-computed, PATH_WEIGHTS "whitened" (the default): a trial whose replays scatter along one direction u with
+    variance 8 (C = 8 u u^T) weighs a misfit along u by 1 / sqrt(1 + 8) = 1/3 and one across it by 1; the weighed
+    covariance W C W^T is 8/9 along u, what the floor counts."""
     from types import SimpleNamespace
 
     from rc1_drake.diagnose import discover as module

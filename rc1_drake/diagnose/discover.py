@@ -11,8 +11,8 @@ by leaving one trial out: the fewest whose held-out cost is within one standard 
 unless it removes MIN_GAIN and MIN_FALL of the held-out cost without terms beyond the noise floor: what the rows cost at
 the truth from the noise discovery measures (the replays' input noise, resampled; the angles' count). The camera's noise
 is not in it (its stated sigma is a scale, not a measurement): the gate errs toward no term. A trial's path rows weigh
-as in the diagnosis's fits (linearize.trial_weights), or by the trial's own input-noise covariance (PATH_WEIGHTS): a
-chaotic replay's misfit counts as its noise.
+by its own input-noise covariance (a generalized least squares; PATH_WEIGHTS): a chaotic replay's misfit along its
+noise's directions counts as that noise.
 
 With `angles`, each trial also contributes its working joints' measured angles against the model's servos driven
 by the trial's command (sysid.residual.angle_residual: a servo's tracking error is its load, which the kinematic
@@ -49,9 +49,9 @@ SIZES = (1, 2, 3, 4)  # how many terms a sparse model may have: a missing effect
 # round-trip tests, not yet on seeded campaigns (issue 43's rates).
 MIN_FALL = 0.25
 MIN_GAIN = 3.84
-# How a trial's path rows weigh (_row_weights): "case", by its case's mean input-noise variance; "whitened", by its
-# own input-noise covariance (judged by benchmarks/discovery.py --path-weights whitened).
-PATH_WEIGHTS = "case"
+# How a trial's path rows weigh (_row_weights): "whitened", by its own input-noise covariance; "case", by its case's
+# mean input-noise variance, as the diagnosis's fits (the paper design's tether: 62% of its error removed against 50%).
+PATH_WEIGHTS = "whitened"
 REFINEMENTS = 2  # Gauss-Newton steps on the surviving terms, by replay
 HALVINGS = 4  # of a step whose runs fail or whose cost rises
 MATCH_COSINE = 0.98  # a term "matches" a library coordinate whose column is this parallel to its prediction
