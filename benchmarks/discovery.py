@@ -111,6 +111,7 @@ def one(cell: Cell, seed: int, args) -> dict:
         "noise": found.noise,
         "input_noise": found.input_noise,
         "terms": [{"key": t.key, "value": t.value, "se": t.standard_error, "words": t.words} for t in found.terms],
+        "tried": [{"key": t.key, "value": t.value, "se": t.standard_error} for t in found.tried],
         "fall": found.fall,
         "angle_fall": found.angle_fall,
         "simulations": found.simulations,
@@ -119,10 +120,11 @@ def one(cell: Cell, seed: int, args) -> dict:
 
 
 def reported(row: dict, min_fall: float, min_gain: float) -> bool:
-    """Whether the gate (discover.passes_gate) lets the campaign's best sparse model through and a term of it stays
-    off zero when refined (discover drops those at a zero bound; rows made before it kept them)."""
+    """Whether the gate (discover.passes_gate) lets the campaign's best sparse model through, a term of it stays
+    off zero when refined, and its held-out replays remove MIN_FALL of the excess (discover reports nothing
+    otherwise; rows made before either check kept their terms, and read the same here)."""
     gate = passes_gate(row["gain"], row["cost_without"], min_fall, min_gain, noise=row["noise"] + row["input_noise"])
-    return gate and any(t["value"] for t in row["terms"])
+    return gate and any(t["value"] for t in row["terms"]) and row["fall"] >= MIN_FALL
 
 
 def is_right(row: dict, cell: Cell) -> bool:

@@ -77,6 +77,20 @@ def test_the_fall_is_taken_of_the_error_beyond_the_noise_floor():
     assert found.angle_fall == 0.0  # no angle rows counted: angles_before 0 is not beyond their noise
 
 
+def test_terms_the_held_out_replays_do_not_confirm_are_tried_not_reported(capsys):
+    """A term through the linear gate whose held-out replays leave the error beyond the floor where it was (100 -> 95
+    over a floor of 40: 8% removed, under MIN_FALL) is not reported and not in the model; the report names it."""
+    from rc1_drake.diagnose.discover import MIN_FALL, Term, not_holding
+
+    term = Term("discrepancy_tail_dry_long_N", "discrepancy_tail_dry_long_N", 0.9, 0.1, "a dry force", [])
+    found = Discovery([term], [], 100.0, 100.0, 95.0, {"wheel_toe_deg": 1.0, term.key: 0.9}, 0, noise=40.0)
+    assert found.fall < MIN_FALL
+    kept = not_holding(found, {"wheel_toe_deg": 1.0})
+    assert kept.terms == [] and kept.tried == [term] and kept.effects == {"wheel_toe_deg": 1.0}
+    text = kept.format()
+    assert "no term holds up when simulated" in text and term.key in text and "8%" in text
+
+
 def test_a_trials_path_rows_weigh_as_in_the_diagnosis_and_its_angle_rows_as_their_noise(monkeypatch):
     """Hand-computed, PATH_WEIGHTS "case": path rows weigh 1 / sqrt(1 + v), v the case's mean input-noise variance
     per row (two trials of one case pooled: (3 + 1) / 2 = 2); the angle rows after them weigh 1."""

@@ -8,7 +8,8 @@ coordinates' likewise, taken only once a term survives, to compare its shape wit
 matching pursuit (scikit-learn's) on normalized columns: with dozens of correlated columns, PySINDy's thresholded least
 squares (STLSQ) kept large cancelling coefficients and lost the true term (docs/findings.md). How many terms is chosen
 by leaving one trial out: the fewest whose held-out cost is within one standard error of the best, and none at all
-unless it removes MIN_GAIN and MIN_FALL of the held-out cost without terms beyond the noise floor: what the rows cost at
+unless it removes MIN_GAIN and MIN_FALL of the held-out cost without terms beyond the noise floor (linearly, then by
+replaying each trial with the terms fitted without it: not_holding): what the rows cost at
 the truth from the noise discovery measures (the replays' input noise, resampled; the angles' count). The camera's noise
 is not in it (its stated sigma is a scale, not a measurement): the gate errs toward no term. A trial's path rows weigh
 by its own input-noise covariance (a generalized least squares; PATH_WEIGHTS): a chaotic replay's misfit along its
@@ -97,6 +98,7 @@ class Discovery:
     angles_before: float = 0.0  # the angle rows' share of heldout_before and heldout_after
     angles_after: float = 0.0
     input_noise: float = 0.0  # the path rows' cost at the truth from the replays' input noise (weighted traces)
+    tried: list[Term] = dataclasses.field(default_factory=list)  # through the linear gate, not holding up by replay
 
     @property
     def floor(self) -> float:
@@ -123,6 +125,14 @@ class Discovery:
                 f"  the servos as the measured angles show them: Kp {s.kp_Nm_per_rad:.3g} N m/rad, "
                 f"Kd {s.kd_Nm_s_per_rad:.3g} N m s/rad, Ki {s.ki_Nm_per_rad_s:.3g} N m/(rad s)"
             )
+        if self.tried:
+            lines.append(
+                f"  no term holds up when simulated: the best sparse model ({', '.join(t.key for t in self.tried)}) "
+                f"passed the linear gate, but replayed on held-out trials it removes {100 * self.fall:.0f}% of the "
+                f"held-out error beyond its noise floor ({self.heldout_before:.4g} -> {self.heldout_after:.4g}; "
+                f"floor {self.floor:.4g}), under {100 * MIN_FALL:.0f}%: not reported"
+            )
+            return "\n".join(lines)
         if not self.terms:
             lines.append(
                 f"  no term earns its place: the best sparse model removes less than {100 * MIN_FALL:.0f}% or "
@@ -253,10 +263,18 @@ def discover(
         terms.append(Term(name, key, value, float(errors[j]), term_words(name, value), matches))
     spent = evaluator.simulations - start
     servo = view.servo if angles else None
-    return Discovery(
+    found = Discovery(
         terms, path, float(cost_without.sum()), before, after, model, spent, servo, angles_before=angles_before,
         angles_after=angles_after, **floors,
     )  # fmt: skip
+    return found if found.fall >= MIN_FALL else not_holding(found, effects)
+
+
+def not_holding(found: Discovery, effects: dict) -> Discovery:
+    """`found` with its terms moved to `tried` and the model without them: terms through the linear gate whose
+    held-out replays remove less than MIN_FALL of the error beyond the floor are not reported (a linear prediction
+    the simulation does not confirm, as the diagnosis's candidates must be confirmed)."""
+    return dataclasses.replace(found, terms=[], tried=found.terms, effects=dict(effects), servo=None)
 
 
 def discover_campaign(
