@@ -77,7 +77,7 @@ def test_the_fall_is_taken_of_the_error_beyond_the_noise_floor():
     assert found.angle_fall == 0.0  # no angle rows counted: angles_before 0 is not beyond their noise
 
 
-def test_terms_the_held_out_replays_do_not_confirm_are_tried_not_reported(capsys):
+def test_terms_the_held_out_replays_do_not_confirm_are_tried_not_reported():
     """A term through the linear gate whose held-out replays leave the error beyond the floor where it was (100 -> 95
     over a floor of 40: 8% removed, under MIN_FALL) is not reported and not in the model; the report names it."""
     from rc1_drake.diagnose.discover import MIN_FALL, Term, not_holding
