@@ -91,6 +91,41 @@ def test_terms_the_held_out_replays_do_not_confirm_are_tried_not_reported():
     assert "no term holds up when simulated" in text and term.key in text and "8%" in text
 
 
+def test_where_the_chosen_model_fails_by_replay_its_smaller_models_that_pass_the_gate_are_tried(monkeypatch):
+    """Hand-made path (cost 100 without terms, floor 20): sizes 1-3 remove 30, 10 and 50; size 3 chosen. Its smaller
+    models that pass the gate (25% of the 80 beyond the floor: 20) are size 1 alone. Replayed: size 3 removes 5% of
+    the excess, size 1 60%: size 1 is reported; were size 1 to fail too, size 3 is named as tried."""
+    from types import SimpleNamespace
+
+    from rc1_drake.diagnose import discover as module
+
+    def entry(size, held):
+        return {"size": size, "support": list(range(size)), "values": [1.0] * size, "held": np.array([held / 2] * 2)}
+
+    path = [entry(1, 70.0), entry(2, 90.0), entry(3, 50.0)]
+    cost = np.array([50.0, 50.0])
+    assert module._smaller(path, path[2], cost, 20.0) == [path[0]]
+
+    def term(key):
+        return module.Term(key, key, 1.0, 0.1, "", [])
+
+    falls = {("a", "b", "c"): 96.0, ("a",): 52.0}  # heldout_after for heldout_before 100 over a floor of 20
+    monkeypatch.setattr(
+        module,
+        "_replayed",
+        lambda c, values: {"terms": [term(k) for k in values], "heldout_before": 100.0,
+                           "heldout_after": falls[tuple(values)], "effects": {**c.effects, **values}},
+    )  # fmt: skip
+    campaign = SimpleNamespace(effects={"wheel_toe_deg": 1.0})
+    empty = Discovery([], path, 100.0, 0.0, 0.0, {"wheel_toe_deg": 1.0}, 0, noise=20.0)
+    found = module._first_holding(campaign, [dict.fromkeys("abc", 1.0), {"a": 1.0}], empty)
+    assert [t.key for t in found.terms] == ["a"] and found.fall == pytest.approx(0.6) and not found.tried
+    falls[("a",)] = 99.0
+    found = module._first_holding(campaign, [dict.fromkeys("abc", 1.0), {"a": 1.0}], empty)
+    assert not found.terms and [t.key for t in found.tried] == ["a", "b", "c"]
+    assert found.effects == {"wheel_toe_deg": 1.0} and found.fall == pytest.approx(0.05)
+
+
 def test_a_trials_path_rows_weigh_as_in_the_diagnosis_and_its_angle_rows_as_their_noise(monkeypatch):
     """Hand-computed, PATH_WEIGHTS "case": path rows weigh 1 / sqrt(1 + v), v the case's mean input-noise variance
     per row (two trials of one case pooled: (3 + 1) / 2 = 2); the angle rows after them weigh 1."""

@@ -9,7 +9,8 @@ matching pursuit (scikit-learn's) on normalized columns: with dozens of correlat
 squares (STLSQ) kept large cancelling coefficients and lost the true term (docs/findings.md). How many terms is chosen
 by leaving one trial out: the fewest whose held-out cost is within one standard error of the best, and none at all
 unless it removes MIN_GAIN and MIN_FALL of the held-out cost without terms beyond the noise floor (linearly, then by
-replaying each trial with the terms fitted without it: not_holding): what the rows cost at
+replaying each trial with the terms fitted without it; where that fails, the path's smaller models that pass the
+gate are replayed in turn: _smaller, not_holding): what the rows cost at
 the truth from the noise discovery measures (the replays' input noise, resampled; the angles' count). The camera's noise
 is not in it (its stated sigma is a scale, not a measurement): the gate errs toward no term. A trial's path rows weigh
 by its own input-noise covariance (a generalized least squares; PATH_WEIGHTS): a chaotic replay's misfit along its
@@ -236,38 +237,93 @@ def discover(
     input_noise = float(sum(np.trace(b) for b in blocks))
     chosen = _choose(path, cost_without, noise + input_noise)
     floors = {"noise": noise, "input_noise": input_noise}
+    empty = Discovery([], path, float(cost_without.sum()), 0.0, 0.0, dict(effects), 0, **floors)
     if chosen is None:
-        spent = evaluator.simulations - start
-        return Discovery([], path, float(cost_without.sum()), 0.0, 0.0, dict(effects), spent, **floors)
-    support = [keys[j] for j in chosen["support"]]
-    values = dict(zip(support, chosen["values"], strict=True))
-    values, fitted, view = _refined(trials, friction, effects, values, evaluator, view, weights)
+        return dataclasses.replace(empty, simulations=evaluator.simulations - start)
+    campaign = _Campaign(trials, friction, effects, evaluator, view, weights, blocks, r, counts, library)
+    models = [chosen, *_smaller(path, chosen, cost_without, noise + input_noise)]
+    found = _first_holding(
+        campaign, [{keys[j]: v for j, v in zip(m["support"], m["values"], strict=True)} for m in models], empty
+    )
+    return dataclasses.replace(found, simulations=evaluator.simulations - start)
+
+
+def _first_holding(campaign: "_Campaign", models: list, empty: Discovery) -> Discovery:
+    """The first of the sparse `models` (term key: linear fit) whose held-out replays remove MIN_FALL of the
+    error beyond the floor, as `empty` with its fields; else the first replayed one, not holding (not_holding)."""
+    first = None
+    for values in models:
+        found = _replayed(campaign, values)
+        if found is None:  # every term refined to a zero bound: the model without them
+            continue
+        found = dataclasses.replace(empty, **found)
+        if found.fall >= MIN_FALL:
+            return found
+        first = first or found
+    return not_holding(first, campaign.effects) if first else empty
+
+
+def _smaller(path, chosen, cost_without, noise: float) -> list:
+    """The path's models with fewer terms than `chosen` that pass the gate on their own held-out gain, largest
+    first: tried in turn where the chosen one's replays do not confirm it (its extra terms may fit the replay's
+    linearization, not the data)."""
+    total = float(np.sum(cost_without))
+    smaller = [p for p in path if p["support"] and p["size"] < chosen["size"]]
+    fits = [p for p in smaller if passes_gate(total - p["held"].sum(), cost_without, noise=noise)]
+    return sorted(fits, key=lambda p: -p["size"])
+
+
+@dataclasses.dataclass
+class _Campaign:
+    """What each sparse model discovery tries is refined on and replayed against: the trials at the model
+    (`friction`, `effects`), their rows' weights and weighed input-noise covariances, their weighed residuals, their
+    angle rows' counts, and the library coordinates (their columns taken once, when a first model needs them)."""
+
+    trials: list
+    friction: Friction
+    effects: dict
+    evaluator: Evaluator
+    view: "_View"
+    weights: list
+    blocks: list
+    r: list
+    counts: list
+    library: list
+    library_columns: np.ndarray | None = None
+
+
+def _replayed(c: _Campaign, values: dict) -> dict | None:
+    """Discovery's fields for the sparse model `values` (a term key each: its linear fit): the terms refined by
+    replay, their intervals and library matches, the held-out error by replay before and after; None where every
+    term refines to its zero bound."""
+    values, fitted, view = _refined(c.trials, c.friction, c.effects, values, c.evaluator, c.view, c.weights)
     values, fitted = _without_zeros(values, fitted, len(view.gains))
-    if not values:  # every term refined to a zero bound: the model without them
-        spent = evaluator.simulations - start
-        return Discovery([], path, float(cost_without.sum()), 0.0, 0.0, dict(effects), spent, **floors)
-    model = {**effects, **values}
-    errors = _standard_errors(fitted, blocks)
-    library_columns = _library_columns(trials, friction, effects, library, evaluator, weights, _View(Servo(), angles))
-    before = sum(float(x @ x) for x in r)
-    held = _held_out_by_replay(trials, friction, model, values, fitted, evaluator, view)
-    held = [_weigh(w, x) for x, w in zip(held, weights, strict=True)]
-    after = sum(float(x @ x) for x in held)
+    if not values:
+        return None
+    model = {**c.effects, **values}
+    errors = _standard_errors(fitted, c.blocks)
+    if c.library_columns is None:
+        base = _View(Servo(), c.view.angles)
+        c.library_columns = _library_columns(c.trials, c.friction, c.effects, c.library, c.evaluator, c.weights, base)
+    held = _held_out_by_replay(c.trials, c.friction, model, values, fitted, c.evaluator, view)
+    held = [_weigh(w, x) for x, w in zip(held, c.weights, strict=True)]
     angles_before, angles_after = (
-        sum(float(x[len(x) - n :] @ x[len(x) - n :]) for x, n in zip(rs, counts, strict=True)) for rs in (r, held)
+        sum(float(x[len(x) - n :] @ x[len(x) - n :]) for x, n in zip(rs, c.counts, strict=True)) for rs in (c.r, held)
     )
     terms = []
     for j, (key, value) in enumerate(values.items()):
         name = parameter_owner(key).name
-        matches = _matches(fitted[0][:, j] * value, library_columns, library)
+        matches = _matches(fitted[0][:, j] * value, c.library_columns, c.library)
         terms.append(Term(name, key, value, float(errors[j]), term_words(name, value), matches))
-    spent = evaluator.simulations - start
-    servo = view.servo if angles else None
-    found = Discovery(
-        terms, path, float(cost_without.sum()), before, after, model, spent, servo, angles_before=angles_before,
-        angles_after=angles_after, **floors,
-    )  # fmt: skip
-    return found if found.fall >= MIN_FALL else not_holding(found, effects)
+    return {
+        "terms": terms,
+        "heldout_before": sum(float(x @ x) for x in c.r),
+        "heldout_after": sum(float(x @ x) for x in held),
+        "effects": model,
+        "servo": view.servo if c.view.angles else None,
+        "angles_before": angles_before,
+        "angles_after": angles_after,
+    }
 
 
 def not_holding(found: Discovery, effects: dict) -> Discovery:
