@@ -22,7 +22,8 @@ gate. Scored per campaign: whether a term is reported, and whether one is the ri
 right sign: RIGHT), and how much of the held-out error the terms remove (by replay). Rows stream to
 benchmarks/rows/NAME.jsonl (kept in the repository: a rerun resumes, from a fresh clone too); --markdown writes the
 table into docs/diagnosis.md. --angles: discovery with the working joints' angles against the model's servos (`rc1
-diagnose --discover --angles`), its rows (discovery-angles) and table in a block of their own. --design paper: the
+diagnose --discover --angles`), its rows apart (discovery-angles), its table printed (docs/diagnosis.md shows the
+angles on the paper's design; give the page a block of that name to write it there). --design paper: the
 paper's 21 trials of 10 s (the shipped campaign's design: no failure, joints 7, 13, 7 with a bias, 2), by default the
 nulls and the tether only (PAPER_CELLS: about half an hour a campaign on 2 cores with the angles); its rows and table
 its own too. --path-weights case: the path rows weighed by their case's scalar, as the diagnosis's fits, instead of
