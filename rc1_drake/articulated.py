@@ -85,9 +85,10 @@ def articulated_solve(inertia, joint_rate, motion, rhs):
             return np.zeros(0)
         pivot[j], reduced[j] = d, r
         for a in range(3):
-            bias[j, a] += bias[j + 1, a] + u[a] * r / d
+            w = u[a] / d  # one division a row: a division costs several products
+            bias[j, a] += bias[j + 1, a] + w * r
             for b in range(3):
-                art[j, a, b] += art[j + 1, a, b] - u[a] * u[b] / d
+                art[j, a, b] += art[j + 1, a, b] - w * u[b]
     head = art[0].copy()
     for a in range(3):
         head[a, a] += joint_rate[a]

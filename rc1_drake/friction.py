@@ -260,8 +260,12 @@ def _isotropic(u_xy, coulomb, eps):
 @jit
 def _servo_torque(offset, rate, power, v_next):
     """The servos' backward-Euler torque clamp(offset - rate v+, +-power) and which servos are not saturated."""
-    raw = offset - rate * v_next
-    return np.minimum(np.maximum(raw, -power), power), (np.abs(raw) < power).astype(np.float64)
+    torque, linear = np.empty(offset.shape[0]), np.empty(offset.shape[0])
+    for a in range(offset.shape[0]):  # a loop: the array expression allocates five temporaries, twice a step
+        raw = offset[a] - rate[a] * v_next[a]
+        torque[a] = min(max(raw, -power[a]), power[a])
+        linear[a] = 1.0 if abs(raw) < power[a] else 0.0
+    return torque, linear
 
 
 @jit
@@ -313,7 +317,7 @@ StepLaws = collections.namedtuple(
 )
 
 
-@jit
+@jit(inline="always")
 def step_rates(v_next, tangent, laws, exact=False):
     """The step's generalized force f(v+) but the discrepancy's (wheels, head and tail drags, joint Coulomb, servos;
     Eqs. 4-5) and dt times the rate of -f term by term: each wheel's along and across its rolling direction (W, 2),
@@ -406,7 +410,7 @@ def assemble_step(v_next, tangent, laws, exact=False):
     return force, matrix, linear
 
 
-@jit
+@jit(inline="always")
 def step_system(v_next, tangent, laws):
     """(f(v+), the step matrix as the solve takes it, which servos are not saturated): body by body (articulated.py)
     where the laws carry the modules' inertias and no discrepancy site (its side force is not symmetric), else
@@ -429,10 +433,12 @@ def step_system(v_next, tangent, laws):
         if laws.drag_coulomb[p] > 0.0:
             span = max(jacobian_span(jac_drag, jac_drag, 2 * p), jacobian_span(jac_drag, jac_drag, 2 * p + 1))
             add_point_rate(inertia[max(span - 3, 0)], jac_drag[2 * p : 2 * p + 2, :3], drag[p])
-    return force, (np.zeros((0, 0)), inertia, laws.joint_rate + joint), linear
+    for a in range(joint.shape[0]):
+        joint[a] += laws.joint_rate[a]  # in place: the joints' own rate and the friction's (step_rates' array)
+    return force, (np.zeros((0, 0)), inertia, joint), linear
 
 
-@jit
+@jit(inline="always")
 def system_solve(system, laws, rhs):
     """system^-1 rhs for step_system's matrix: by the articulated-body recursion, or densely (Cholesky, LU where the
     matrix is not definite or not symmetric)."""
@@ -445,51 +451,80 @@ def system_solve(system, laws, rhs):
     return out
 
 
-@jit
+@jit(inline="always")
 def _step_residual(v_next, laws, momentum_free):
     """The backward-Euler step's residual M v+ - p_free - dt f(v+) (with c_joint in M) and its Jacobian."""
     force, system, _ = step_system(v_next, True, laws)
-    return laws.mass_damped @ v_next - momentum_free - laws.dt * force, system
+    mass_damped, n = laws.mass_damped, v_next.shape[0]
+    residual = np.empty(n)
+    for a in range(n):  # loops, not a BLAS call and temporaries: this runs ~4 times a step on a 16 x 16
+        total = 0.0
+        for b in range(n):
+            total += mass_damped[a, b] * v_next[b]
+        residual[a] = total - momentum_free[a] - laws.dt * force[a]
+    return residual, system
 
 
-# A Newton step under 0.1 um/s (1e-4 of the sgn() smoothing) ends the solve once taken: its error is ~step^2 / eps.
-NEWTON_TOLERANCE_M_S = 1e-7
+# A Newton step under 10 um/s ends the solve once taken: the error left is ~step^2 / eps (measured on a replay:
+# 130-1200 step^2, so <= ~1e-7 m/s, 1e-4 of the sgn() smoothing), and a quarter of a step's cost is saved. A run
+# that is differentiated solves on (engine/tangent.py linearizes the converged step: at 1e-5 its columns miss
+# central differences by 3e-4).
+NEWTON_FINAL_STEP_M_S = 1e-5
+TANGENT_FINAL_STEP_M_S = 1e-7
 NEWTON_STALL_M_S = 1e-9  # a backtracked step that moves no velocity by this much: the line search has stalled
 MAX_HALVINGS = 12
 
 
 @jit
-def _implicit_friction_force(laws, mass_matrix, momentum_free, v, newton_steps):
+def _largest_magnitude(a):
+    """max |a_i|, without np.abs's temporary."""
+    out = 0.0
+    for x in a:
+        out = max(out, abs(x))
+    return out
+
+
+@jit
+def _implicit_friction_force(laws, mass_matrix, momentum_free, v, newton_steps, final_step):
     dt, servo_offset, servo_rate, servo_power = laws.dt, laws.servo_offset, laws.servo_rate, laws.servo_power
     # The secant start: each Coulomb term through the origin at its rate at v; the servos as they stand at
     # v, linear where not saturated, a constant torque where saturated.
     _, system, linear = step_system(v, False, laws)
     servo = _servo_torque(servo_offset, servo_rate, servo_power, v)[0]
-    v_next = system_solve(system, laws, momentum_free + dt * (linear * servo_offset + (1.0 - linear) * servo))
+    rhs = np.empty(v.shape[0])
+    for a in range(v.shape[0]):
+        rhs[a] = momentum_free[a] + dt * (linear[a] * servo_offset[a] + (1.0 - linear[a]) * servo[a])
+    v_next = system_solve(system, laws, rhs)
     # Newton steps from that secant start, each backtracked until the residual's norm falls (Armijo): a plain
     # Newton step cycles where the servo clamp or a Coulomb kink switches within the step, and the servos then
     # chatter (seen at 1 ms on noisy measured angles with two undamped steps).
     residual, system = _step_residual(v_next, laws, momentum_free)
     for _ in range(newton_steps):
         step = system_solve(system, laws, residual)
-        if np.abs(step).max() < NEWTON_TOLERANCE_M_S:  # converged: take the last step, nothing left to check
+        largest = _largest_magnitude(step)
+        if largest < final_step:  # converged: take the last step, nothing left to check
             v_next = v_next - step
             break
         norm = residual @ residual
         alpha = 1.0
         for _ in range(MAX_HALVINGS):
-            trial = v_next - alpha * step
+            trial = np.empty_like(v_next)
+            for a in range(trial.shape[0]):
+                trial[a] = v_next[a] - alpha * step[a]
             trial_residual, trial_system = _step_residual(trial, laws, momentum_free)
             if trial_residual @ trial_residual <= (1.0 - 1e-4 * alpha) * norm:
                 break
             alpha *= 0.5
-        moved = alpha * np.abs(step).max()
+        moved = alpha * largest
         v_next, residual, system = trial, trial_residual, trial_system
         if moved < NEWTON_STALL_M_S:
             break
     servo = _servo_torque(servo_offset, servo_rate, servo_power, v_next)[0]
     # The plant applies the servo torque itself; v+ also returned: the plant's free motion, without a second solve.
-    return (mass_matrix @ v_next - momentum_free) / dt - servo, servo, v_next
+    force = mass_matrix @ v_next
+    for a in range(force.shape[0]):
+        force[a] = (force[a] - momentum_free[a]) / dt - servo[a]
+    return force, servo, v_next
 
 
 def implicit_friction_force(
@@ -556,7 +591,9 @@ def implicit_friction_force(
         np.zeros((0, 3)),
         dt * np.asarray(joint_damping, dtype=float),
     )
-    force, torque, _ = _implicit_friction_force(laws, mass_matrix, momentum_free, v, newton_steps)
+    force, torque, _ = _implicit_friction_force(
+        laws, mass_matrix, momentum_free, v, newton_steps, TANGENT_FINAL_STEP_M_S
+    )
     return force if servo is None else (force, torque)
 
 
@@ -653,15 +690,21 @@ def friction_problem(
     servo_gains,
     chain,
     bodies,
+    frames=None,
 ):
     """The implicit step at state x: its StepLaws (wheel Jacobians along and across the wheels, joint damping with a
     failed joint's compliant stop, the friction-law terms, the servos' backward-Euler offset, rate and power, the
     modules' inertias from `bodies` (module_inertias' (nm, 4); none: the solve is dense)), the free momentum (the
-    stop's known torque in it), that known torque, and the wheels' toe."""
+    stop's known torque in it), that known torque, and the wheels' toe. `frames`: the chain's frames at x
+    (kinematics.chain_frames), when the caller has them."""
     joint_in_parent, joint_in_child, wheel_module, wheel_offset, wheel_toe = chain
     nw = wheel_module.shape[0]
-    toe = wheel_toe * np.exp(1j * params[PER_WHEEL + nw : PER_WHEEL + 2 * nw])
-    frames = chain_frames(x, joint_in_parent, joint_in_child)
+    toe = np.empty(nw, dtype=np.complex128)
+    for w in range(nw):  # loops here and below: each array expression's temporary is an allocation, every step
+        angle = params[PER_WHEEL + nw + w]
+        toe[w] = wheel_toe[w] * np.exp(1j * angle) if angle != 0.0 else wheel_toe[w]  # exp(0) = 1: 28 exps saved
+    if frames is None:
+        frames = chain_frames(x, joint_in_parent, joint_in_child)
     _, direction, jacobian = wheel_kinematics_at(frames, wheel_module, wheel_offset, toe)
     nv = x.shape[0] // 2
     jac_long, jac_lat = np.empty((nw, nv)), np.empty((nw, nv))  # rows: v_long + i v_lat of each wheel
@@ -676,8 +719,11 @@ def friction_problem(
     joint_damping = np.zeros(nv)
     joint_coulomb = np.zeros(nv)
     state = params[FAILED]
-    joint_damping[3:] = np.where(state == FREE, params[C_JOINT], np.where(state == LOCKED, LOCKED_DAMPING, 0.0))
-    joint_coulomb[3:] = np.where(state == FREE, params[JOINT_COULOMB], 0.0)
+    for j in range(state.shape[0]):
+        if state[j] == FREE:
+            joint_damping[3 + j], joint_coulomb[3 + j] = params[C_JOINT], params[JOINT_COULOMB]
+        elif state[j] == LOCKED:
+            joint_damping[3 + j] = LOCKED_DAMPING
     spring, stop_rate = compliant_stop(x, params, dt)
     theta = params[PER_WHEEL + 2 * nw : PER_WHEEL + 2 * nw + NUM_TERMS]
     # The discrepancy model: only the sites with a term (none: the paper's model, an empty view, nothing allocated).
@@ -709,10 +755,19 @@ def friction_problem(
     servo_offset = np.zeros(nv)
     servo_rate = np.zeros(nv)
     power = np.zeros(nv)
-    servo_offset[3:] = servo_command + kd * v[3:]
-    servo_rate[3:] = kd + dt * kp
-    power[3:] = servo_power
-    joint_rate = dt * (joint_damping + stop_rate)
+    joint_rate = np.empty(nv)
+    for a in range(nv):
+        if a >= 3:
+            servo_offset[a] = servo_command[a - 3] + kd * v[a]
+            servo_rate[a] = kd + dt * kp
+            power[a] = servo_power[a - 3]
+        joint_rate[a] = dt * (joint_damping[a] + stop_rate[a])
+    mass_damped = mass_matrix.copy()
+    for a in range(nv):
+        mass_damped[a, a] += joint_rate[a]
+    momentum_free = mass_matrix @ v
+    for a in range(nv):
+        momentum_free[a] = momentum_free[a] + dt * other_force[a] + dt * spring[a]
     if bodies.shape[0]:
         inertia, motion = chain_inertias(frames, bodies)
     else:
@@ -721,7 +776,7 @@ def friction_problem(
         jac_long,
         jac_lat,
         spans,
-        mass_matrix + np.diag(joint_rate),
+        mass_damped,
         dt,
         params[MU_LONG],
         params[MU_LAT],
@@ -743,7 +798,7 @@ def friction_problem(
         motion,
         joint_rate,
     )
-    return laws, mass_matrix @ v + dt * other_force + dt * spring, spring, toe
+    return laws, momentum_free, spring, toe
 
 
 @jit
@@ -764,19 +819,23 @@ def friction_step(
     dt,
     params,
     newton_steps,
+    final_step,
     servo_command,
     servo_power,
     servo_gains,
     chain,
     bodies,
+    frames=None,
 ):
     laws, momentum_free, spring, _ = friction_problem(
-        x, other_force, mass_matrix, dt, params, servo_command, servo_power, servo_gains, chain, bodies
+        x, other_force, mass_matrix, dt, params, servo_command, servo_power, servo_gains, chain, bodies, frames
     )
     force, servo, v_next = _implicit_friction_force(
-        laws, mass_matrix, momentum_free, x[x.shape[0] // 2 :], newton_steps
+        laws, mass_matrix, momentum_free, x[x.shape[0] // 2 :], newton_steps, final_step
     )
-    return force + spring, servo, v_next  # the solve's force leaves out the spring it was given as known
+    for a in range(force.shape[0]):  # the solve's force leaves out the spring it was given as known
+        force[a] += spring[a]
+    return force, servo, v_next
 
 
 @jit
@@ -824,7 +883,7 @@ class FrictionForces(LeafSystem):
     forces of the step (KnownForces, an abstract parameter): every per-run value lives in the context.
     """
 
-    NEWTON_STEPS = 20  # at most: the solve stops when a step moves no velocity by NEWTON_TOLERANCE_M_S
+    NEWTON_STEPS = 20  # at most: the solve stops at a step that moves no velocity by NEWTON_FINAL_STEP_M_S
 
     def __init__(
         self, plant, geometry: ChainGeometry, friction: Friction, sgn_smoothing_m_s: float, *, servo_gains=(0.0, 0.0)
@@ -920,6 +979,7 @@ class FrictionForces(LeafSystem):
             self._dt,
             params,
             self.NEWTON_STEPS,
+            NEWTON_FINAL_STEP_M_S,
             command_port.Eval(context),
             power_port.Eval(context),
             self._servo_gains,

@@ -105,7 +105,9 @@ def test_friction_tangent_matches_central_differences_of_the_solve():
 
     def v_plus(x, p, u):
         M, bias, _ = chain_terms(x, mass, inertia, com, jp, jc, 0j)
-        force, servo, _ = fr.friction_step(x, -bias, M, dt, p, 50, u, power, gains, geometry.arrays, bodies)
+        force, servo, _ = fr.friction_step(
+            x, -bias, M, dt, p, 50, fr.TANGENT_FINAL_STEP_M_S, u, power, gains, geometry.arrays, bodies
+        )
         return np.linalg.solve(M, M @ x[16:] + dt * (-bias + force + servo))
 
     x = run.state[40]
@@ -139,8 +141,11 @@ def test_friction_tangent_matches_central_differences_of_the_solve():
 
 
 def _central(simulate, scenario_at, name):
+    """Central differences of two runs solved as tightly as a differentiated run (friction.TANGENT_FINAL_STEP_M_S:
+    a run asked for any sensitivity); a plain run's looser stop would be differenced at h too."""
     h = 1e-4 if name.endswith("_deg") else 1e-5  # where round-off and truncation balance, measured
-    return (simulate(scenario_at(name, h)).state[-1] - simulate(scenario_at(name, -h)).state[-1]) / (2 * h)
+    ends = [simulate(scenario_at(name, s * h), sensitivities=[name]).state[-1] for s in (1, -1)]
+    return (ends[0] - ends[1]) / (2 * h)
 
 
 def test_run_sensitivities_match_central_differences_of_whole_runs():

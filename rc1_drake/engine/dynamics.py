@@ -22,7 +22,7 @@ import functools
 
 import numpy as np
 
-from ..kinematics import ChainGeometry, jit
+from ..kinematics import ChainGeometry, chain_frames, jit
 
 
 @dataclasses.dataclass(frozen=True)
@@ -65,50 +65,60 @@ def plant_numbers() -> PlantNumbers:
 
 
 @jit
-def chain_terms(x, mass, yaw_inertia, com, joint_in_parent, joint_in_child, gravity_xy):
-    """(M, C v, g) of the planar chain at state x (module docstring)."""
+def chain_terms(x, mass, yaw_inertia, com, joint_in_parent, joint_in_child, gravity_xy, frames=None):
+    """(M, C v, g) of the planar chain at state x (module docstring), by composite bodies: every column of J_k is
+    a planar twist S_j about the head's centre (the head's x, y, yaw; joint j's, which moves modules j + 1 on), so
+    M_ij = S_i . (sum over the modules column j moves of B_k) S_j for i <= j, and C v, g are the columns' S_i
+    against the force sums: O(n^2), not the O(n^3) of summing module by module. `frames`: the chain's frames at x
+    (kinematics.chain_frames), when the caller has them (a step: the friction solve takes them too)."""
     nj = joint_in_parent.shape[0]
     nm = nj + 1
     nv = nj + 3
-    phi = np.cumsum(x[2:nv])
-    phi_dot = np.cumsum(x[nv + 2 :])
-    e = np.exp(1j * phi)
-    p = np.empty(nm, dtype=np.complex128)  # module origins
-    acc = np.empty(nm, dtype=np.complex128)  # their velocity-product accelerations
-    joint_xy = np.empty(nj, dtype=np.complex128)
-    p[0] = x[0] + 1j * x[1]
+    if frames is None:
+        e, p, joint_xy = chain_frames(x, joint_in_parent, joint_in_child)
+    else:
+        e, p, joint_xy = frames
+    phi_dot = np.empty(nm)
+    acc = np.empty(nm, dtype=np.complex128)  # the module origins' velocity-product accelerations
     acc[0] = 0.0
-    for j in range(nj):
-        a = e[j] * joint_in_parent[j]
-        b = e[j + 1] * joint_in_child[j]
-        joint_xy[j] = p[j] + a
-        p[j + 1] = p[j] + a - b
-        acc[j + 1] = acc[j] - phi_dot[j] ** 2 * a + phi_dot[j + 1] ** 2 * b
-    M = np.zeros((nv, nv))
-    bias = np.zeros(nv)
-    gravity = np.zeros(nv)
-    jac = np.empty(nv, dtype=np.complex128)
     for k in range(nm):
+        phi_dot[k] = x[nv + 2 + k] + (phi_dot[k - 1] if k > 0 else 0.0)
+        if k > 0:
+            j = k - 1
+            a, b = e[j] * joint_in_parent[j], e[k] * joint_in_child[j]
+            acc[k] = acc[j] - phi_dot[j] ** 2 * a + phi_dot[k] ** 2 * b
+    # Per column: its twist (vx, vy, w at the head's centre), then the composite sums of the bodies it moves:
+    # mass, first moment about the head's centre, yaw inertia about it, and the velocity-product and gravity
+    # forces (x, y, torque about the head's centre).
+    twist = np.zeros((nv, 3))
+    twist[0, 0] = twist[1, 1] = twist[2, 2] = 1.0
+    for j in range(nj):
+        d = joint_xy[j] - p[0]
+        twist[3 + j, 0], twist[3 + j, 1], twist[3 + j, 2] = d.imag, -d.real, 1.0
+    body = np.zeros((nm, 10))  # m, m r_x, m r_y, yaw inertia about the head's centre, C-force (3), g-force (3)
+    for k in range(nm - 1, -1, -1):
         r = e[k] * com[k]
-        c = p[k] + r
-        a_k = acc[k] - phi_dot[k] ** 2 * r
-        n = 3 + k  # coordinates that move module k: x, y, yaw and the k joints ahead of it
-        jac[0] = 1.0
-        jac[1] = 1j
-        jac[2] = 1j * (c - p[0])
-        for j in range(k):
-            jac[3 + j] = 1j * (c - joint_xy[j])
+        u = p[k] + r - p[0]
         m = mass[k]
-        for i in range(n):
-            ci = np.conj(jac[i])
-            bias[i] += m * (ci * a_k).real
-            gravity[i] += m * (ci * gravity_xy).real
-            for j in range(i, n):
-                M[i, j] += m * (ci * jac[j]).real
-        for i in range(2, n):  # Omega_k: the head yaw and joints 0..k-1
-            for j in range(i, n):
-                M[i, j] += yaw_inertia[k]
-    for i in range(nv):
-        for j in range(i):
-            M[i, j] = M[j, i]
+        a_k = m * (acc[k] - phi_dot[k] ** 2 * r)
+        g_k = m * gravity_xy
+        b = body[k]
+        b[0], b[1], b[2], b[3] = m, m * u.real, m * u.imag, m * (u.real**2 + u.imag**2) + yaw_inertia[k]
+        b[4], b[5], b[6] = a_k.real, a_k.imag, u.real * a_k.imag - u.imag * a_k.real
+        b[7], b[8], b[9] = g_k.real, g_k.imag, u.real * g_k.imag - u.imag * g_k.real
+        if k + 1 < nm:
+            for c in range(10):
+                b[c] += body[k + 1, c]
+    M = np.empty((nv, nv))
+    bias = np.empty(nv)
+    gravity = np.empty(nv)
+    for j in range(nv):
+        o = 0 if j < 3 else j - 2  # the first module column j moves
+        m, sx, sy, yaw = body[o, 0], body[o, 1], body[o, 2], body[o, 3]
+        s0, s1, s2 = twist[j, 0], twist[j, 1], twist[j, 2]
+        f0, f1, f2 = m * s0 - sy * s2, m * s1 + sx * s2, -sy * s0 + sx * s1 + yaw * s2
+        for i in range(j + 1):
+            M[i, j] = M[j, i] = twist[i, 0] * f0 + twist[i, 1] * f1 + twist[i, 2] * f2
+        bias[j] = s0 * body[o, 4] + s1 * body[o, 5] + s2 * body[o, 6]
+        gravity[j] = s0 * body[o, 7] + s1 * body[o, 8] + s2 * body[o, 9]
     return M, bias, gravity

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..friction import NEWTON_FINAL_STEP_M_S, TANGENT_FINAL_STEP_M_S
 from ..kinematics import jit
 from .step import plant_step, plant_terms
 from .tangent import step_tangent
@@ -42,17 +43,13 @@ def _hermite(t, breaks, values, rates, segment):
     h = breaks[i + 1] - breaks[i]
     s = (t - breaks[i]) / h
     s2, s3 = s * s, s * s * s
-    value = (
-        (2 * s3 - 3 * s2 + 1) * values[i]
-        + (s3 - 2 * s2 + s) * h * rates[i]
-        + (-2 * s3 + 3 * s2) * values[i + 1]
-        + (s3 - s2) * h * rates[i + 1]
-    )
-    rate = (
-        (6 * s2 - 6 * s) * (values[i] - values[i + 1]) / h
-        + (3 * s2 - 4 * s + 1) * rates[i]
-        + (3 * s2 - 2 * s) * rates[i + 1]
-    )
+    c0, c1, c2, c3 = 2 * s3 - 3 * s2 + 1, (s3 - 2 * s2 + s) * h, -2 * s3 + 3 * s2, (s3 - s2) * h
+    d0, d1, d2 = (6 * s2 - 6 * s), 3 * s2 - 4 * s + 1, 3 * s2 - 2 * s
+    m = values.shape[1]
+    value, rate = np.empty(m), np.empty(m)
+    for k in range(m):  # a loop: the vector expression's temporaries were ~20 allocations, twice a step
+        value[k] = c0 * values[i, k] + c1 * rates[i, k] + c2 * values[i + 1, k] + c3 * rates[i + 1, k]
+        rate[k] = d0 * (values[i, k] - values[i + 1, k]) / h + d1 * rates[i, k] + d2 * rates[i + 1, k]
     return value, rate
 
 
@@ -88,11 +85,11 @@ def _servo_target(gains, theta, theta_dot, lower, upper):
 def _servo_command(gains, z_pid, theta, theta_dot, x, lower, upper):
     """The servo PID's command Ki z + Kp (target - q) + Kd (theta_dot - q_dot) at state x (servo.add_servos)."""
     nq = x.shape[0] // 2
-    return (
-        gains[1] * z_pid
-        + gains[0] * (_servo_target(gains, theta, theta_dot, lower, upper) - x[3:nq])
-        + gains[2] * (theta_dot - x[nq + 3 :])
-    )
+    target = _servo_target(gains, theta, theta_dot, lower, upper)
+    command = np.empty(nq - 3)
+    for k in range(nq - 3):  # a loop: no temporaries
+        command[k] = gains[1] * z_pid[k] + gains[0] * (target[k] - x[3 + k]) + gains[2] * (theta_dot[k] - x[nq + 3 + k])
+    return command
 
 
 @jit
@@ -218,6 +215,7 @@ def advance_run(
     in_plane = model[2] != 0.0
     plant = plant_terms(mass, yaw_inertia, com, gravity_xy, in_plane, lower, upper, locked, chain)
     servo_gains = np.array([gains[0], gains[2]])
+    final_step = TANGENT_FINAL_STEP_M_S if sens.shape[0] else NEWTON_FINAL_STEP_M_S
     for k in range(k0, k1):
         t = k * dt if k > k0 or np.isnan(t_first) else t_first
         theta, theta_dot, error = _command(t, x, source, gait, heading, z_heading, breaks, values, rates, segment)
@@ -231,6 +229,7 @@ def advance_run(
             servo_gains,
             extra_force,
             plant,
+            final_step,
         )
         while log_next[0] < log_steps.shape[0] and log_steps[log_next[0]] == k:
             row = log_next[0]
@@ -252,6 +251,7 @@ def advance_run(
                     servo_gains,
                     extra_force,
                     plant,
+                    final_step,
                 )[1]
             log_next[0] += 1
         last_torque[:] = torque
@@ -279,7 +279,9 @@ def advance_run(
                 plant,
             )
         theta, theta_dot, error = _command(t, x_next, source, gait, heading, z_heading, breaks, values, rates, segment)
-        z_pid += dt * (_servo_target(gains, theta, theta_dot, lower, upper) - x_next[3:nq])
+        target = _servo_target(gains, theta, theta_dot, lower, upper)
+        for j in range(nq - 3):
+            z_pid[j] += dt * (target[j] - x_next[3 + j])
         z_heading[0] += dt * error
         x[:] = x_next
         if not np.isfinite(x[0]):

@@ -23,7 +23,7 @@ import collections
 import numpy as np
 
 from ..friction import FrictionForces, friction_step, spd_solve
-from ..kinematics import jit
+from ..kinematics import chain_frames, jit
 from .dynamics import chain_terms
 
 NEWTON_STEPS = FrictionForces.NEWTON_STEPS
@@ -67,12 +67,25 @@ def limit_constraints(q, v, v_star, A, dt, lower, upper, locked):
 
 
 @jit
+def _near_a_limit(q, v, v_star, dt, lower, upper):
+    """Whether any joint is within limit_constraints' window of a limit (no joint locked)."""
+    for j in range(lower.shape[0]):
+        d = 3 + j
+        dq = LIMIT_WINDOW * dt * max(abs(v[d]), abs(v_star[d]))
+        if lower[j] >= q[d] - dq or upper[j] <= q[d] + dq:
+            return True
+    return False
+
+
+@jit
 def _limit_solve(q, v, v_star, A, dt, lower, upper, locked):
     """v+ of the SAP step with joint-limit constraints, locked joints held at rate 0 (module docstring)."""
     nv = v.shape[0]
+    out = v_star.copy()
+    if not locked.any() and not _near_a_limit(q, v, v_star, dt, lower, upper):
+        return out  # most steps: nothing to solve, and nothing to allocate for it
     free = np.ones(nv, dtype=np.bool_)
     free[3:] = ~locked
-    out = v_star.copy()
     if locked.any():  # min |v - v*|_A with v_locked = 0: A_uu v_u = (A v*)_u
         index = np.flatnonzero(free)
         out[:] = 0.0
@@ -135,31 +148,38 @@ def plant_step(
     servo_gains,
     extra_force,
     plant,
+    final_step,
 ):
     """(x+, servo torque (13,), v*, the force that gives the friction solve's v+ = v + dt M^-1 force) of one
     Diagram step from state x (module docstring)."""
     mass, yaw_inertia, com, gravity_xy, gravity_in_plane, lower, upper, locked, chain, bodies = plant
     joint_in_parent, joint_in_child, _, _, _ = chain
     nv = x.shape[0] // 2
-    M, bias, gravity = chain_terms(x, mass, yaw_inertia, com, joint_in_parent, joint_in_child, gravity_xy)
-    other = -bias
-    if gravity_in_plane:
-        other = other + gravity
+    frames = chain_frames(x, joint_in_parent, joint_in_child)  # once: the chain's terms and the friction take them
+    M, bias, gravity = chain_terms(x, mass, yaw_inertia, com, joint_in_parent, joint_in_child, gravity_xy, frames)
+    known = np.empty(nv)  # -bias (+ gravity in the plane) + extra_force, in loops: no temporaries, every step
+    for a in range(nv):
+        known[a] = (-bias[a] + gravity[a] if gravity_in_plane else -bias[a]) + extra_force[a]
     friction, servo, v_solved = friction_step(
         x,
-        other + extra_force,
+        known,
         M,
         dt,
         params,
         NEWTON_STEPS,
+        final_step,
         servo_command,
         servo_power,
         servo_gains,
         chain,
         bodies,
+        frames,
     )
-    tau = -bias + gravity + friction + extra_force  # the plant applies its gravity field itself
-    tau[3:] += servo[3:]
+    tau = np.empty(nv)  # the plant applies its gravity field itself
+    for a in range(nv):
+        tau[a] = -bias[a] + gravity[a] + friction[a] + extra_force[a]
+        if a >= 3:
+            tau[a] += servo[a]
     v = x[nv:]
     if gravity_in_plane or not gravity.any():
         v_star = v_solved  # M (v* - v) = dt tau is the equation the friction solve's v+ satisfies
@@ -167,6 +187,7 @@ def plant_step(
         v_star = v + dt * spd_solve(M, tau)
     v_next = _limit_solve(x[:nv], v, v_star, M, dt, lower, upper, locked)
     out = np.empty_like(x)
-    out[:nv] = x[:nv] + dt * v_next
-    out[nv:] = v_next
-    return out, servo[3:].copy(), v_star, other + extra_force + friction + servo  # the last two: for tangent.py
+    for a in range(nv):
+        out[a], out[nv + a] = x[a] + dt * v_next[a], v_next[a]
+        known[a] = known[a] + friction[a] + servo[a]  # the force the step applied: with v*, for tangent.py
+    return out, servo[3:].copy(), v_star, known
