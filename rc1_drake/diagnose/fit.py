@@ -13,10 +13,11 @@ from .linearize import Linearization, moved
 
 TRUST_STEPS = 4.0  # an effect coordinate's linear fit moves at most this many probe steps per round
 
-# The physics' covariance where the trial jackknife exceeds the sandwich: "trace", the one of larger trace (a trace
-# adds units: it flipped the shipped toe's interval by a quarter on replays moved by 1e-7 m, docs/findings.md);
-# "direction", the larger of the two in every direction (stats.larger_covariance), judged by benchmarks/paper_rates.py.
-JACKKNIFE_RULE = "trace"
+# The physics' covariance where the trial jackknife exceeds the sandwich: "direction", the larger of the two in every
+# direction (stats.larger_covariance: continuous, free of units); "trace", the one of larger trace, the default before
+# 2026-11-29 (a trace adds units: it flipped the shipped toe's interval by a quarter on replays moved by round-off,
+# docs/findings.md 2026-11-28 (18), 2026-11-29 (24)).
+JACKKNIFE_RULE = "direction"
 
 
 def bounded_least_squares(x, r, lower, upper) -> np.ndarray:
