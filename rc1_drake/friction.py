@@ -279,7 +279,8 @@ def jacobian_span(jac_long, jac_lat, w):
 
 # One step's friction laws and servos, as step_rates takes them (friction_problem builds them): a new force term
 # enters here, in friction_problem and in step_rates (its rate's place in assemble_step and step_system, its
-# derivative in engine/tangent.py), and nowhere else.
+# derivative in engine/tangent.py), and nowhere else. The functions the Newton loop calls with it are inlined
+# (numba's inline="always"): a call increfs and decrefs every array of the tuple it takes, several times a step.
 StepLaws = collections.namedtuple(
     "StepLaws",
     [
