@@ -39,6 +39,13 @@ def rigid_regularization(dt):
 
 
 @jit
+def _in_window(q, v, v_star, dt, d, sign, limit):
+    """Whether a limit of dof d (sign +1 lower, -1 upper) is within the step's window (module docstring)."""
+    dq = LIMIT_WINDOW * dt * max(abs(v[d]), abs(v_star[d]))
+    return limit >= q[d] - dq if sign > 0.0 else limit <= q[d] + dq
+
+
+@jit
 def limit_constraints(q, v, v_star, A, dt, lower, upper, locked):
     """SAP's joint-limit constraints of the step (module docstring): for each limit within the window, its
     dof, sign (+1 lower, -1 upper), v_hat and 1/R; returns those arrays and their count."""
@@ -52,10 +59,9 @@ def limit_constraints(q, v, v_star, A, dt, lower, upper, locked):
         d = 3 + j
         if locked[j]:
             continue
-        dq = LIMIT_WINDOW * dt * max(abs(v[d]), abs(v_star[d]))
         q0 = q[d]
         for sign, limit in ((1.0, lower[j]), (-1.0, upper[j])):
-            if (sign > 0.0 and limit >= q0 - dq) or (sign < 0.0 and limit <= q0 + dq):
+            if _in_window(q, v, v_star, dt, d, sign, limit):
                 w = 1.0 / A[d, d]
                 R = max(LIMIT_BETA**2 / (4.0 * np.pi**2) * w, rigid_regularization(dt))
                 dofs[count] = d
@@ -70,9 +76,7 @@ def limit_constraints(q, v, v_star, A, dt, lower, upper, locked):
 def _near_a_limit(q, v, v_star, dt, lower, upper):
     """Whether any joint is within limit_constraints' window of a limit (no joint locked)."""
     for j in range(lower.shape[0]):
-        d = 3 + j
-        dq = LIMIT_WINDOW * dt * max(abs(v[d]), abs(v_star[d]))
-        if lower[j] >= q[d] - dq or upper[j] <= q[d] + dq:
+        if _in_window(q, v, v_star, dt, 3 + j, 1.0, lower[j]) or _in_window(q, v, v_star, dt, 3 + j, -1.0, upper[j]):
             return True
     return False
 
@@ -175,15 +179,12 @@ def plant_step(
         bodies,
         frames,
     )
-    tau = np.empty(nv)  # the plant applies its gravity field itself
-    for a in range(nv):
-        tau[a] = -bias[a] + gravity[a] + friction[a] + extra_force[a]
-        if a >= 3:
-            tau[a] += servo[a]
     v = x[nv:]
     if gravity_in_plane or not gravity.any():
-        v_star = v_solved  # M (v* - v) = dt tau is the equation the friction solve's v+ satisfies
-    else:  # gravity that the friction solve was not told of
+        v_star = v_solved  # M (v* - v) = dt (the step's forces) is the equation the friction solve's v+ satisfies
+    else:  # gravity that the friction solve was not told of (the plant applies its gravity field itself)
+        tau = -bias + gravity + friction + extra_force
+        tau[3:] += servo[3:]
         v_star = v + dt * spd_solve(M, tau)
     v_next = _limit_solve(x[:nv], v, v_star, M, dt, lower, upper, locked)
     out = np.empty_like(x)
