@@ -421,21 +421,24 @@ def step_system(v_next, tangent, laws):
         return force, (matrix, np.zeros((0, 3, 3)), np.zeros(0)), linear
     force, wheel, joint, drag, linear = step_rates(v_next, tangent, laws)
     inertia = laws.inertia.copy()
-    jac_long, jac_lat, jac_drag = laws.jac_long, laws.jac_lat, laws.jac_drag
+    # Each field read once, not in the loops: a field of the tuple read is an array's reference count taken
+    jac_long, jac_lat, jac_drag, spans, drag_coulomb, joint_rate = (
+        laws.jac_long, laws.jac_lat, laws.jac_drag, laws.spans, laws.drag_coulomb, laws.joint_rate
+    )  # fmt: skip
     # A point's P^T D P on the last module whose joint moves it (P: its rows' twist part, articulated.py); behind a
     # joint that does not move it, it may as well ride ahead of that joint.
     for w in range(jac_long.shape[0]):
-        k = max(laws.spans[w] - 3, 0)
+        k = max(spans[w] - 3, 0)
         for a in range(3):
             la, ta = wheel[w, 0] * jac_long[w, a], wheel[w, 1] * jac_lat[w, a]
             for b in range(3):
                 inertia[k, a, b] += la * jac_long[w, b] + ta * jac_lat[w, b]
     for p in range(drag.shape[0]):
-        if laws.drag_coulomb[p] > 0.0:
+        if drag_coulomb[p] > 0.0:
             span = max(jacobian_span(jac_drag, jac_drag, 2 * p), jacobian_span(jac_drag, jac_drag, 2 * p + 1))
             add_point_rate(inertia[max(span - 3, 0)], jac_drag[2 * p : 2 * p + 2, :3], drag[p])
     for a in range(joint.shape[0]):
-        joint[a] += laws.joint_rate[a]  # in place: the joints' own rate and the friction's (step_rates' array)
+        joint[a] += joint_rate[a]  # in place: the joints' own rate and the friction's (step_rates' array)
     return force, (np.zeros((0, 0)), inertia, joint), linear
 
 
