@@ -69,27 +69,26 @@ def articulated_solve(inertia, joint_rate, motion, rhs):
     nj = motion.shape[0]
     nv = rhs.shape[0]
     art = inertia.copy()
-    bias = np.zeros((nj + 1, 3))
-    carried = np.empty((nj, 3))  # U_j = art_{j+1} S_j
-    pivot = np.empty(nj)
-    reduced = np.empty(nj)  # rhs_j - S_j . bias_{j+1}
+    # One scratch array, not four: per joint j, the bias force of its subtree (columns 0-2, j = nj: none),
+    # U_j = art_{j+1} S_j (3-5), the pivot S_j . U_j + rate (6) and rhs_j - S_j . bias_{j+1} (7).
+    work = np.zeros((nj + 1, 8))
     for j in range(nj - 1, -1, -1):  # loops, not BLAS calls: 3 x 3 blocks
-        u = carried[j]
         d = joint_rate[3 + j]
         r = rhs[3 + j]
         for a in range(3):
-            u[a] = art[j + 1, a, 0] * motion[j, 0] + art[j + 1, a, 1] * motion[j, 1] + art[j + 1, a, 2] * motion[j, 2]
-            d += motion[j, a] * u[a]
-            r -= motion[j, a] * bias[j + 1, a]
+            u = art[j + 1, a, 0] * motion[j, 0] + art[j + 1, a, 1] * motion[j, 1] + art[j + 1, a, 2] * motion[j, 2]
+            work[j, 3 + a] = u
+            d += motion[j, a] * u
+            r -= motion[j, a] * work[j + 1, a]
         if not d > 0.0:
             return np.zeros(0)
-        pivot[j], reduced[j] = d, r
+        work[j, 6], work[j, 7] = d, r
         for a in range(3):
-            w = u[a] / d  # one division a row: a division costs several products
-            bias[j, a] += bias[j + 1, a] + w * r
+            w = work[j, 3 + a] / d  # one division a row: a division costs several products
+            work[j, a] += work[j + 1, a] + w * r
             for b in range(3):
-                art[j, a, b] += art[j + 1, a, b] - w * u[b]
-    head = art[0].copy()
+                art[j, a, b] += art[j + 1, a, b] - w * work[j, 3 + b]
+    head = art[0]  # the fold's own copy: the head's 3 x 3 with its rates, in place
     for a in range(3):
         head[a, a] += joint_rate[a]
     # The head's 3 x 3 by Cholesky, written out: a generic call costs more than the whole recursion.
@@ -107,16 +106,16 @@ def articulated_solve(inertia, joint_rate, motion, rhs):
     if not l22 > 0.0:
         return np.zeros(0)
     l22 = np.sqrt(l22)
-    y0 = (rhs[0] - bias[0, 0]) / l00
-    y1 = (rhs[1] - bias[0, 1] - l10 * y0) / l11
-    y2 = (rhs[2] - bias[0, 2] - l20 * y0 - l21 * y1) / l22
+    y0 = (rhs[0] - work[0, 0]) / l00
+    y1 = (rhs[1] - work[0, 1] - l10 * y0) / l11
+    y2 = (rhs[2] - work[0, 2] - l20 * y0 - l21 * y1) / l22
     out = np.empty(nv)
     out[2] = y2 / l22
     out[1] = (y1 - l21 * out[2]) / l11
     out[0] = (y0 - l10 * out[1] - l20 * out[2]) / l00
     t0, t1, t2 = out[0], out[1], out[2]  # the parent's twist
     for j in range(nj):
-        rate = (reduced[j] - carried[j, 0] * t0 - carried[j, 1] * t1 - carried[j, 2] * t2) / pivot[j]
+        rate = (work[j, 7] - work[j, 3] * t0 - work[j, 4] * t1 - work[j, 5] * t2) / work[j, 6]
         out[3 + j] = rate
         t0, t1, t2 = t0 + motion[j, 0] * rate, t1 + motion[j, 1] * rate, t2 + motion[j, 2] * rate
     return out

@@ -415,7 +415,8 @@ def assemble_step(v_next, tangent, laws, exact=False):
 def step_system(v_next, tangent, laws):
     """(f(v+), the step matrix as the solve takes it, which servos are not saturated): body by body (articulated.py)
     where the laws carry the modules' inertias and no discrepancy site (its side force is not symmetric), else
-    dense (assemble_step). The matrix is (dense or empty, modules' inertias with the rates or empty, joint rates)."""
+    dense (assemble_step). The matrix is (dense, modules' inertias with the rates or empty, joint rates); where the
+    inertias are given, the dense part is M + dt diag(damping) unchanged and system_solve does not read it."""
     if laws.inertia.shape[0] == 0 or laws.sites.shape[0] > 0:
         force, matrix, linear = assemble_step(v_next, tangent, laws)
         return force, (matrix, np.zeros((0, 3, 3)), np.zeros(0)), linear
@@ -439,7 +440,7 @@ def step_system(v_next, tangent, laws):
             add_point_rate(inertia[max(span - 3, 0)], jac_drag[2 * p : 2 * p + 2, :3], drag[p])
     for a in range(joint.shape[0]):
         joint[a] += joint_rate[a]  # in place: the joints' own rate and the friction's (step_rates' array)
-    return force, (np.zeros((0, 0)), inertia, joint), linear
+    return force, (laws.mass_damped, inertia, joint), linear  # unread dense part: no allocation
 
 
 @jit(inline="always")
