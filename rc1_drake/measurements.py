@@ -208,7 +208,8 @@ def _load_json(path: Path) -> dict:
     )
 
 
-def _load_csv(path: Path, failed_joints) -> dict:
+def _read_table(path: Path) -> tuple[list, np.ndarray]:
+    """The CSV's header, checked against the columns a trial has, and its cells as numbers (NaN where empty)."""
     try:
         with open(path, newline="") as f:
             rows = list(csv.reader(f))
@@ -247,15 +248,16 @@ def _load_csv(path: Path, failed_joints) -> dict:
             if not math.isfinite(value):
                 _fail(path, f"line {line}, column {header[c]}", f"{cell} is not a finite number")
             values[r, c] = value
-    col = {name: values[:, header.index(name)] for name in header}
+    return header, values
 
-    def first_empty(name):
-        return int(np.flatnonzero(np.isnan(col[name]))[0]) + 2
 
-    for name in ("t_s", "head_yaw_rate_rad_s"):
-        if np.isnan(col[name]).any():
-            _fail(path, f"line {first_empty(name)}, column {name}", "empty cell")
-    t = col["t_s"]
+def _first_empty(data) -> int:
+    """The file's line of a column's first empty cell."""
+    return int(np.flatnonzero(np.isnan(data))[0]) + 2
+
+
+def _check_time(path: Path, t) -> float:
+    """The sample period, after checking the time column increases evenly."""
     steps = np.diff(t)
     if (steps <= 0).any():
         bad = int(np.flatnonzero(steps <= 0)[0]) + 3
@@ -267,9 +269,15 @@ def _load_csv(path: Path, failed_joints) -> dict:
         _fail(
             path, f"line {bad}, column t_s", f"not evenly sampled (step {steps[bad - 3]:.6g} s, usual {median:.6g} s)"
         )
+    return median
+
+
+def _joint_angles(path: Path, col: dict, failed_joints, period: float) -> tuple[np.ndarray, dict]:
+    """The potentiometers' angles (NaN for failed joints), checked for units, gaps and jumps no servo makes, and the
+    joints whose reading passes the limit (degrees)."""
     limit = math.radians(JOINT_LIMIT_DEG + JOINT_TOLERANCE_DEG)
-    jump = math.radians(JUMP_TOLERANCE_DEG + JUMP_SPEED_FACTOR * SERVO_SPEED_DEG_S * median)
-    q = np.full((len(t), NUM_JOINTS), np.nan)
+    jump = math.radians(JUMP_TOLERANCE_DEG + JUMP_SPEED_FACTOR * SERVO_SPEED_DEG_S * period)
+    q = np.full((len(col["t_s"]), NUM_JOINTS), np.nan)
     beyond = {}
     for j, name in enumerate(JOINT_COLUMNS, start=1):
         data = col[name]
@@ -281,7 +289,7 @@ def _load_csv(path: Path, failed_joints) -> dict:
                 )
             continue
         if np.isnan(data).any():
-            _fail(path, f"line {first_empty(name)}, column {name}", f"empty cell for working joint {j}")
+            _fail(path, f"line {_first_empty(data)}, column {name}", f"empty cell for working joint {j}")
         peak = float(np.abs(data).max())
         line = int(np.argmax(np.abs(data))) + 2
         if peak > DEGREES_HINT_RAD:
@@ -300,6 +308,17 @@ def _load_csv(path: Path, failed_joints) -> dict:
         if peak > limit:
             beyond[j] = math.degrees(data[line - 2])
         q[:, j - 1] = data
+    return q, beyond
+
+
+def _load_csv(path: Path, failed_joints) -> dict:
+    header, values = _read_table(path)
+    col = {name: values[:, header.index(name)] for name in header}
+    for name in ("t_s", "head_yaw_rate_rad_s"):
+        if np.isnan(col[name]).any():
+            _fail(path, f"line {_first_empty(col[name])}, column {name}", "empty cell")
+    period = _check_time(path, col["t_s"])
+    q, beyond = _joint_angles(path, col, failed_joints, period)
     rate = col["head_yaw_rate_rad_s"]
     if np.abs(rate).max() > YAW_RATE_HINT_RAD_S:
         line = int(np.argmax(np.abs(rate))) + 2
@@ -309,12 +328,12 @@ def _load_csv(path: Path, failed_joints) -> dict:
             f"{rate[line - 2]:g} looks like deg/s, the column is in rad/s",
         )
     cam = None
-    if camera:
+    if CAMERA_COLUMNS[0] in col:
         cam = np.column_stack([col[c] for c in CAMERA_COLUMNS])
         partial = np.isnan(cam).any(axis=1) & ~np.isnan(cam).all(axis=1)
         if partial.any():
             _fail(path, f"line {int(np.flatnonzero(partial)[0]) + 2}", "camera cells are empty together or not at all")
-    return dict(t=t, q=q, head_yaw_rate=rate, camera=cam, beyond_limit=beyond)
+    return dict(t=col["t_s"], q=q, head_yaw_rate=rate, camera=cam, beyond_limit=beyond)
 
 
 def load_trial(json_path) -> Trial:
