@@ -49,6 +49,74 @@ class ProgramResult:
         }
 
 
+@dataclasses.dataclass(frozen=True)
+class _Coordinates:
+    """The fit's coordinates u, 0 at the start: the log of each free friction coefficient over its start value, each
+    free effect parameter's change over its range (so a step of 0.1 is ~10% of either)."""
+
+    free: list
+    start: Friction
+    start_effects: dict
+    base: np.ndarray
+
+    @classmethod
+    def at(cls, free, start: Friction, start_effects: dict) -> "_Coordinates":
+        base = [
+            max(getattr(start, p.name), 1e-3 * (p.upper - p.lower))
+            if p.is_friction
+            else min(max(parameter_value(p.name, start, start_effects), p.lower), p.upper)
+            for p in free
+        ]
+        return cls(free, start, start_effects, np.array(base))
+
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        def u(p, b, value):
+            return math.log(max(value, 1e-6) / b) if p.is_friction else (value - b) / (p.upper - p.lower)
+
+        pairs = [(u(p, b, p.lower), u(p, b, p.upper)) for p, b in zip(self.free, self.base, strict=True)]
+        return np.array([lo for lo, _ in pairs]), np.array([hi for _, hi in pairs])
+
+    def scale(self, u) -> np.ndarray:
+        """d value / d u."""
+        rows = zip(self.free, self.base, u, strict=True)
+        return np.array([b * math.exp(x) if p.is_friction else p.upper - p.lower for p, b, x in rows])
+
+    def model(self, u) -> tuple:
+        """(friction, effects) at u."""
+        values = {
+            p.name: float(b * math.exp(x) if p.is_friction else b + (p.upper - p.lower) * x)
+            for p, b, x in zip(self.free, self.base, u, strict=True)
+        }
+        return with_values(self.start, self.start_effects, values)
+
+
+def _levenberg_marquardt(residual_at, jacobian_at, r, lower, upper, *, max_iterations, tolerance, on_step):
+    """(u, cost, iterations, the last Jacobian) of Levenberg-Marquardt from u = 0 (residual r) within [lower, upper]:
+    each bounded step a MathematicalProgram (sysid.optimize.bounded_step), the damping raised until the cost falls;
+    stops when a step improves the cost by under `tolerance` (relative) or moves no coordinate by 1e-3."""
+    u = np.zeros(lower.shape[0])
+    cost = 0.5 * float(r @ r)
+    damping, iterations, jac = 1.0, 0, None
+    for k in range(1, max_iterations + 1):
+        iterations = k
+        jac = jacobian_at(u, r)
+        while True:
+            step = bounded_step(jac, r, damping, lower - u, upper - u)
+            r_new = residual_at(u + step)
+            cost_new = 0.5 * float(r_new @ r_new)
+            if cost_new < cost:
+                damping = max(damping / 3, 1e-6)
+                break
+            damping *= 4
+            if damping > 1e6:
+                return u, cost, iterations, jac
+        u, r, improvement, cost = u + step, r_new, (cost - cost_new) / cost, cost_new
+        on_step(u)
+        if improvement < tolerance or np.abs(step).max() < 1e-3:
+            break
+    return u, cost, iterations, jac
+
+
 def fit_program(
     residuals,
     *,
@@ -68,91 +136,42 @@ def fit_program(
     per free parameter per iteration). `on_iteration(friction, simulations)`,
     if given, is called after every accepted step."""
     free = [p for p in (parameters or DEFAULT_PARAMETERS) if not p.frozen]
-    start_effects = dict(start_effects or {})
-    span = np.array([1.0 if p.is_friction else p.upper - p.lower for p in free])
-    base = np.array(
-        [
-            max(getattr(start, p.name), 1e-3 * (p.upper - p.lower))
-            if p.is_friction
-            else min(max(parameter_value(p.name, start, start_effects), p.lower), p.upper)
-            for p in free
-        ]
-    )
-    lower = np.array(
-        [
-            math.log(max(p.lower, 1e-6) / b) if p.is_friction else (p.lower - b) / s
-            for p, b, s in zip(free, base, span, strict=True)
-        ]
-    )
-    upper = np.array(
-        [
-            math.log(p.upper / b) if p.is_friction else (p.upper - b) / s
-            for p, b, s in zip(free, base, span, strict=True)
-        ]
-    )
+    coords = _Coordinates.at(free, start, dict(start_effects or {}))
     start_sims = getattr(residuals, "simulations", 0)
-
-    def model_at(u):
-        values = {
-            p.name: float(b * math.exp(x) if p.is_friction else b + s * x)
-            for p, b, s, x in zip(free, base, span, u, strict=True)
-        }
-        return with_values(start, start_effects, values)
-
-    def friction_at(u):
-        return model_at(u)[0]
-
     names = [p.name for p in free]
     exact = hasattr(residuals, "with_jacobian") and bool(free) and exact_jacobian_available(names)
+
+    def residual_at(u):
+        return residuals(*coords.model(u))
 
     def jacobian_at(u, r):
         """d r / d u: exact from the replays' sensitivities (chain rule through the log or linear scaling),
         else forward differences of log_step."""
         if not exact:
-            return np.column_stack([(residuals(*model_at(u + log_step * e)) - r) / log_step for e in np.eye(len(u))])
-        _, by_value = residuals.with_jacobian(*model_at(u), names)
-        scale = np.array(
-            [b * math.exp(x) if p.is_friction else s for p, b, s, x in zip(free, base, span, u, strict=True)]
-        )
-        return by_value * scale
+            return np.column_stack([(residual_at(u + log_step * e) - r) / log_step for e in np.eye(len(u))])
+        return residuals.with_jacobian(*coords.model(u), names)[1] * coords.scale(u)
+
+    def on_step(u):
+        if on_iteration is not None:
+            on_iteration(coords.model(u)[0], getattr(residuals, "simulations", 0) - start_sims)
 
     u = np.zeros(len(free))
-    r = residuals(*model_at(u))
+    r = residual_at(u)
     cost_start = cost = 0.5 * float(r @ r)
-    if not free:
-        return ProgramResult(
-            start=start,
-            friction=start,
-            cost_start=cost,
-            cost=cost,
-            iterations=0,
-            simulations=getattr(residuals, "simulations", 0) - start_sims,
-            effects=start_effects,
+    iterations, jac = 0, None
+    if free:
+        lower, upper = coords.bounds()
+        u, cost, iterations, jac = _levenberg_marquardt(
+            residual_at,
+            jacobian_at,
+            r,
+            lower,
+            upper,
+            max_iterations=max_iterations,
+            tolerance=tolerance,
+            on_step=on_step,
         )
-    damping, iterations = 1.0, 0
-    jac = None
-    for k in range(1, max_iterations + 1):
-        iterations = k
-        jac = jacobian_at(u, r)
-        while True:
-            step = bounded_step(jac, r, damping, lower - u, upper - u)
-            r_new = residuals(*model_at(u + step))
-            cost_new = 0.5 * float(r_new @ r_new)
-            if cost_new < cost:
-                damping = max(damping / 3, 1e-6)
-                break
-            damping *= 4
-            if damping > 1e6:
-                step = None
-                break
-        if step is None:
-            break
-        u, r, improvement, cost = u + step, r_new, (cost - cost_new) / cost, cost_new
-        if on_iteration is not None:
-            on_iteration(friction_at(u), getattr(residuals, "simulations", 0) - start_sims)
-        if improvement < tolerance or np.abs(step).max() < 1e-3:
-            break
-    friction, effects = model_at(u)
+    friction, effects = coords.model(u)
     return ProgramResult(
         start=start,
         friction=friction,
