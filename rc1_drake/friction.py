@@ -684,6 +684,44 @@ def tail_end_jacobian(x, chain):
 
 
 @jit
+def wheel_rows(frames, params, chain):
+    """Each wheel's toe (its rolling direction in its module, the toe angle of `params` turning it) and its velocity
+    Jacobian along and across that direction, (W, nv) each, with how many leading coordinates move it."""
+    _, _, wheel_module, wheel_offset, wheel_toe = chain
+    nw = wheel_module.shape[0]
+    toe = np.empty(nw, dtype=np.complex128)
+    for w in range(nw):  # loops here and below: each array expression's temporary is an allocation, every step
+        angle = params[PER_WHEEL + nw + w]
+        toe[w] = wheel_toe[w] * np.exp(1j * angle) if angle != 0.0 else wheel_toe[w]  # exp(0) = 1: 28 exps saved
+    _, direction, jacobian = wheel_kinematics_at(frames, wheel_module, wheel_offset, toe)
+    nv = jacobian.shape[1]
+    jac_long, jac_lat = np.empty((nw, nv)), np.empty((nw, nv))  # rows: v_long + i v_lat of each wheel
+    spans = np.empty(nw, dtype=np.int64)
+    for w in range(nw):
+        along = np.conj(direction[w])
+        for a in range(nv):
+            local = along * jacobian[w, a]
+            jac_long[w, a], jac_lat[w, a] = local.real, local.imag
+        spans[w] = jacobian_span(jac_long, jac_lat, w)
+    return toe, jac_long, jac_lat, spans
+
+
+@jit
+def servo_terms(v, dt, servo_command, servo_power, servo_gains):
+    """The servos' backward-Euler torque clamp(offset - rate v+, +-power) per coordinate (0 for the base's): the PID
+    command u_n = Kp (theta - q) + Kd (theta_dot - q_dot) + Ki z at the step's start becomes
+    Kp (theta - q - dt v+) + Kd (theta_dot - v+) + Ki z = u_n + Kd q_dot - (Kd + dt Kp) v+."""
+    kp, kd = servo_gains
+    nv = v.shape[0]
+    offset, rate, power = np.zeros(nv), np.zeros(nv), np.zeros(nv)
+    for a in range(3, nv):
+        offset[a] = servo_command[a - 3] + kd * v[a]
+        rate[a] = kd + dt * kp
+        power[a] = servo_power[a - 3]
+    return offset, rate, power
+
+
+@jit
 def friction_problem(
     x,
     other_force,
@@ -702,24 +740,12 @@ def friction_problem(
     modules' inertias from `bodies` (module_inertias' (nm, 4); none: the solve is dense)), the free momentum (the
     stop's known torque in it), that known torque, and the wheels' toe. `frames`: the chain's frames at x
     (kinematics.chain_frames), when the caller has them."""
-    joint_in_parent, joint_in_child, wheel_module, wheel_offset, wheel_toe = chain
+    joint_in_parent, joint_in_child, wheel_module, _, _ = chain
     nw = wheel_module.shape[0]
-    toe = np.empty(nw, dtype=np.complex128)
-    for w in range(nw):  # loops here and below: each array expression's temporary is an allocation, every step
-        angle = params[PER_WHEEL + nw + w]
-        toe[w] = wheel_toe[w] * np.exp(1j * angle) if angle != 0.0 else wheel_toe[w]  # exp(0) = 1: 28 exps saved
     if frames is None:
         frames = chain_frames(x, joint_in_parent, joint_in_child)
-    _, direction, jacobian = wheel_kinematics_at(frames, wheel_module, wheel_offset, toe)
+    toe, jac_long, jac_lat, spans = wheel_rows(frames, params, chain)
     nv = x.shape[0] // 2
-    jac_long, jac_lat = np.empty((nw, nv)), np.empty((nw, nv))  # rows: v_long + i v_lat of each wheel
-    spans = np.empty(nw, dtype=np.int64)
-    for w in range(nw):
-        along = np.conj(direction[w])
-        for a in range(nv):
-            local = along * jacobian[w, a]
-            jac_long[w, a], jac_lat[w, a] = local.real, local.imag
-        spans[w] = jacobian_span(jac_long, jac_lat, w)
     v = np.ascontiguousarray(x[nv:])
     joint_damping = np.zeros(nv)
     joint_coulomb = np.zeros(nv)
@@ -754,18 +780,9 @@ def friction_problem(
     jac_drag[1, 1] = 1.0
     if params[TETHER_N] > 0.0:
         jac_drag[2:] = tail_end_jacobian(x, chain)
-    # The servo PID's command u_n = Kp (theta - q) + Kd (theta_dot - q_dot) + Ki z at the step's start becomes
-    # its backward-Euler torque Kp (theta - q - dt v+) + Kd (theta_dot - v+) + Ki z = u_n + Kd q_dot - (Kd + dt Kp) v+.
-    kp, kd = servo_gains
-    servo_offset = np.zeros(nv)
-    servo_rate = np.zeros(nv)
-    power = np.zeros(nv)
+    servo_offset, servo_rate, power = servo_terms(v, dt, servo_command, servo_power, servo_gains)
     joint_rate = np.empty(nv)
     for a in range(nv):
-        if a >= 3:
-            servo_offset[a] = servo_command[a - 3] + kd * v[a]
-            servo_rate[a] = kd + dt * kp
-            power[a] = servo_power[a - 3]
         joint_rate[a] = dt * (joint_damping[a] + stop_rate[a])
     mass_damped = mass_matrix.copy()
     for a in range(nv):
