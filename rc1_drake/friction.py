@@ -443,31 +443,32 @@ def step_system(v_next, tangent, laws):
     return force, (laws.mass_damped, inertia, joint), linear  # unread dense part: no allocation
 
 
+# The Newton loop's helpers take the arrays they read, not the StepLaws tuple: an inlined function's tuple argument
+# costs a reference count on each of its ~20 arrays at every call.
 @jit(inline="always")
-def system_solve(system, laws, rhs):
-    """system^-1 rhs for step_system's matrix: by the articulated-body recursion, or densely (Cholesky, LU where the
-    matrix is not definite or not symmetric)."""
+def system_solve(system, motion, symmetric, rhs):
+    """system^-1 rhs for step_system's matrix: by the articulated-body recursion (the joints' `motion`), or densely
+    (Cholesky where `symmetric`, LU where the matrix is not definite or not symmetric)."""
     dense, inertia, joint_rate = system
     if inertia.shape[0] == 0:
-        return _step_solve(dense, rhs, laws.sites.shape[0] == 0)
-    out = articulated_solve(inertia, joint_rate, laws.motion, rhs)
+        return _step_solve(dense, rhs, symmetric)
+    out = articulated_solve(inertia, joint_rate, motion, rhs)
     if out.shape[0] == 0:
-        return lu_solve(articulated_matrix(inertia, joint_rate, laws.motion), rhs)
+        return lu_solve(articulated_matrix(inertia, joint_rate, motion), rhs)
     return out
 
 
-@jit(inline="always")
-def _step_residual(v_next, laws, momentum_free):
-    """The backward-Euler step's residual M v+ - p_free - dt f(v+) (with c_joint in M) and its Jacobian."""
-    force, system, _ = step_system(v_next, True, laws)
-    mass_damped, n = laws.mass_damped, v_next.shape[0]
+@jit
+def step_residual(v_next, force, mass_damped, dt, momentum_free):
+    """The backward-Euler step's residual M v+ - p_free - dt f(v+) (with c_joint in M), f(v+) = `force`."""
+    n = v_next.shape[0]
     residual = np.empty(n)
     for a in range(n):  # loops, not a BLAS call and temporaries: this runs ~4 times a step on a 16 x 16
         total = 0.0
         for b in range(n):
             total += mass_damped[a, b] * v_next[b]
-        residual[a] = total - momentum_free[a] - laws.dt * force[a]
-    return residual, system
+        residual[a] = total - momentum_free[a] - dt * force[a]
+    return residual
 
 
 # A Newton step under 10 um/s ends the solve once taken: the error left is ~step^2 / eps (measured on a replay:
@@ -492,6 +493,7 @@ def _largest_magnitude(a):
 @jit
 def _implicit_friction_force(laws, mass_matrix, momentum_free, v, newton_steps, final_step):
     dt, servo_offset, servo_rate, servo_power = laws.dt, laws.servo_offset, laws.servo_rate, laws.servo_power
+    motion, symmetric, mass_damped = laws.motion, laws.sites.shape[0] == 0, laws.mass_damped
     # The secant start: each Coulomb term through the origin at its rate at v; the servos as they stand at
     # v, linear where not saturated, a constant torque where saturated.
     _, system, linear = step_system(v, False, laws)
@@ -499,13 +501,14 @@ def _implicit_friction_force(laws, mass_matrix, momentum_free, v, newton_steps, 
     rhs = np.empty(v.shape[0])
     for a in range(v.shape[0]):
         rhs[a] = momentum_free[a] + dt * (linear[a] * servo_offset[a] + (1.0 - linear[a]) * servo[a])
-    v_next = system_solve(system, laws, rhs)
+    v_next = system_solve(system, motion, symmetric, rhs)
     # Newton steps from that secant start, each backtracked until the residual's norm falls (Armijo): a plain
     # Newton step cycles where the servo clamp or a Coulomb kink switches within the step, and the servos then
     # chatter (seen at 1 ms on noisy measured angles with two undamped steps).
-    residual, system = _step_residual(v_next, laws, momentum_free)
+    force, system, _ = step_system(v_next, True, laws)
+    residual = step_residual(v_next, force, mass_damped, dt, momentum_free)
     for _ in range(newton_steps):
-        step = system_solve(system, laws, residual)
+        step = system_solve(system, motion, symmetric, residual)
         largest = _largest_magnitude(step)
         if largest < final_step:  # converged: take the last step, nothing left to check
             v_next = v_next - step
@@ -516,7 +519,8 @@ def _implicit_friction_force(laws, mass_matrix, momentum_free, v, newton_steps, 
             trial = np.empty_like(v_next)
             for a in range(trial.shape[0]):
                 trial[a] = v_next[a] - alpha * step[a]
-            trial_residual, trial_system = _step_residual(trial, laws, momentum_free)
+            force, trial_system, _ = step_system(trial, True, laws)
+            trial_residual = step_residual(trial, force, mass_damped, dt, momentum_free)
             if trial_residual @ trial_residual <= (1.0 - 1e-4 * alpha) * norm:
                 break
             alpha *= 0.5
