@@ -217,7 +217,7 @@ def one(cell: Cell, seed: int, args) -> dict:
         "resumed": result.resumed,  # replays taken from an earlier, interrupted run's checkpoint
         # Set by hand where known, never here: "paused" (timed across a pause of the grid), "shared_cpu" (timed beside
         # other heavy work on the machine), "replayed_wall_s" (a replay's time beside the first whole run's, kept as
-        # wall_s).
+        # wall_s), "older_engine" (made before the compiled engine of 2026-11-29: its minutes are not today's).
     }
 
 
@@ -228,10 +228,11 @@ def look_alikes(row: dict, cell: Cell) -> set:
 
 def whole_runs(rows: list) -> dict:
     """Per campaign (cell, seed), the wall seconds of a diagnosis of it run whole and alone: not resumed from a
-    checkpoint (its replays cost nothing), not timed across a pause or beside other work. The default's own where it
-    has one, else another variant's: a variant that replayed only where it parted from another costs about what that
-    one did."""
-    whole = [r for r in rows if not (r.get("resumed") or r.get("paused") or r.get("shared_cpu"))]
+    checkpoint (its replays cost nothing), not timed across a pause or beside other work, nor on an older engine. The
+    default's own where it has one, else another variant's: a variant that replayed only where it parted from another
+    costs about what that one did."""
+    flags = ("resumed", "paused", "shared_cpu", "older_engine")
+    whole = [r for r in rows if not any(r.get(flag) for flag in flags)]
     ordered = sorted(whole, key=lambda r: r.get("variant", "default") == "default")  # the default's last: it wins
     return {(r["cell"], r["seed"]): r["wall_s"] for r in ordered}
 
