@@ -279,8 +279,9 @@ def jacobian_span(jac_long, jac_lat, w):
 
 # One step's friction laws and servos, as step_rates takes them (friction_problem builds them): a new force term
 # enters here, in friction_problem and in step_rates (its rate's place in assemble_step and step_system, its
-# derivative in engine/tangent.py), and nowhere else. The functions the Newton loop calls with it are inlined
-# (numba's inline="always"): a call increfs and decrefs every array of the tuple it takes, several times a step.
+# derivative in engine/tangent.py), and nowhere else. The functions the Newton loop calls are inlined (numba's
+# inline="always"), and the ones it calls most take the arrays they read, not the tuple: passing the tuple, inlined
+# or not, counts a reference on each of its ~20 arrays at every call, several times a step.
 StepLaws = collections.namedtuple(
     "StepLaws",
     [
@@ -443,8 +444,6 @@ def step_system(v_next, tangent, laws):
     return force, (laws.mass_damped, inertia, joint), linear  # unread dense part: no allocation
 
 
-# The Newton loop's helpers take the arrays they read, not the StepLaws tuple: an inlined function's tuple argument
-# costs a reference count on each of its ~20 arrays at every call.
 @jit(inline="always")
 def system_solve(system, motion, symmetric, rhs):
     """system^-1 rhs for step_system's matrix: by the articulated-body recursion (the joints' `motion`), or densely
@@ -459,7 +458,7 @@ def system_solve(system, motion, symmetric, rhs):
 
 
 @jit
-def step_residual(v_next, force, mass_damped, dt, momentum_free):
+def _step_residual(v_next, force, mass_damped, dt, momentum_free):
     """The backward-Euler step's residual M v+ - p_free - dt f(v+) (with c_joint in M), f(v+) = `force`."""
     n = v_next.shape[0]
     residual = np.empty(n)
@@ -506,7 +505,7 @@ def _implicit_friction_force(laws, mass_matrix, momentum_free, v, newton_steps, 
     # Newton step cycles where the servo clamp or a Coulomb kink switches within the step, and the servos then
     # chatter (seen at 1 ms on noisy measured angles with two undamped steps).
     force, system, _ = step_system(v_next, True, laws)
-    residual = step_residual(v_next, force, mass_damped, dt, momentum_free)
+    residual = _step_residual(v_next, force, mass_damped, dt, momentum_free)
     for _ in range(newton_steps):
         step = system_solve(system, motion, symmetric, residual)
         largest = _largest_magnitude(step)
@@ -520,7 +519,7 @@ def _implicit_friction_force(laws, mass_matrix, momentum_free, v, newton_steps, 
             for a in range(trial.shape[0]):
                 trial[a] = v_next[a] - alpha * step[a]
             force, trial_system, _ = step_system(trial, True, laws)
-            trial_residual = step_residual(trial, force, mass_damped, dt, momentum_free)
+            trial_residual = _step_residual(trial, force, mass_damped, dt, momentum_free)
             if trial_residual @ trial_residual <= (1.0 - 1e-4 * alpha) * norm:
                 break
             alpha *= 0.5
