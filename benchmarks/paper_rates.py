@@ -323,7 +323,15 @@ def section(rows: list, cells: list, trials_per_case: int, which: str, timed: di
         f"Measured by `python benchmarks/paper_rates.py --markdown` ({which}; last run {time.strftime('%Y-%m-%d')}; "
         f"{trials_per_case} trials of each paper case per campaign, {seed_span(used)}, {len(rows)} campaigns):"
     )
-    return "\n\n".join([head, body, summary, targets(rows, cells)]), summary
+    return "\n\n".join([head, body, summary, targets(rows, cells), verdicts_read(rows)]), summary
+
+
+def verdicts_read(rows: list) -> str:
+    """How each verdict of the report read on `rows`: in how many campaigns it held (diagnose.verdict's meaning)."""
+    kinds = {c.label: hidden_kind(c) for c in CELLS}
+    rates = verdict_rates([{**r, "hidden": kinds[r["cell"]]} for r in rows if r["cell"] in kinds])
+    said = [f"`{v}` held ({x['meaning']}) on {x['held']} of {x['campaigns']}" for v, x in rates.items()]
+    return "How the report's verdicts read on these campaigns (its second line): " + "; ".join(said) + "."
 
 
 def seed_span(used: list) -> str:

@@ -886,6 +886,23 @@ def test_the_paper_rates_minutes_are_a_whole_run_of_the_campaign_under_any_varia
     assert paper_rates.table(defaults, paper_rates.CELLS)[0].splitlines()[2].endswith(f"| {200.0 / 60:.1f} |")
 
 
+def test_the_paper_rates_page_says_how_often_each_verdict_held_on_the_campaigns_it_counts(monkeypatch):
+    """The verdicts' line under each table is counted from its rows (a verdict holds as diagnose.verdict says)."""
+    monkeypatch.syspath_prepend(str(REPO / "benchmarks"))
+    paper_rates = importlib.import_module("paper_rates")
+    null, toe = paper_rates.CELLS[0].label, next(c.label for c in paper_rates.CELLS if c.expected == ("wheel_toe",))
+    rows = [
+        {"cell": null, "verdict": "no_missing_effect", "outcome": "right"},
+        {"cell": toe, "verdict": "no_missing_effect", "outcome": "missed"},
+        {"cell": toe, "verdict": "effect_found", "outcome": "right"},
+        {"cell": null, "verdict": "effect_found", "outcome": "wrong"},
+    ]
+    line = paper_rates.verdicts_read(rows)
+    assert "`effect_found` held (the hidden effects exactly) on 1 of 2" in line
+    assert "`no_missing_effect` held (nothing hidden) on 1 of 2" in line
+    assert "`ambiguous` held (something hidden) on 0 of 0" in line
+
+
 def test_the_probe_kind_that_tells_two_candidates_apart_sees_what_neither_mimics():
     """probe.telling_apart on hand-made columns: a kind where the two are parallel never tells them apart; of the
     others, the one where the part each cannot mimic is seen soonest, relative to where each is seen at all."""
