@@ -239,6 +239,66 @@ class PlanarSnake:
         return out
 
 
+def _prescribed(gait, joint_path):
+    """The working joints' (q, q_dot, q_ddot) at t: the gait's serpenoid, or a cubic spline through joint_path."""
+    if joint_path is None:
+        amp, omega, phase, bias = serpenoid_parameters(gait)
+
+        def serpenoid(t):
+            arg = omega * t - phase
+            return (amp * np.sin(arg) + bias, amp * omega * np.cos(arg), -amp * omega**2 * np.sin(arg))
+
+        return serpenoid
+    spline = CubicSpline(joint_path[0], joint_path[1], axis=0)
+    d1, d2 = spline.derivative(1), spline.derivative(2)
+
+    def splined(t):
+        return spline(t), d1(t), d2(t)
+
+    return splined
+
+
+def _start_state(snake, scenario, prescribed, free, at_rest):
+    """The free coordinates and rates at t = 0 as the protocol says: serpenoid angles and rates, head at the start
+    point, mean module yaw along the heading and not turning, the centre of mass (or the head) at rest."""
+    q0, qd0, _ = prescribed(0.0)
+    rel = np.concatenate([[0.0], np.cumsum(q0)])
+    reld = np.concatenate([[0.0], np.cumsum(qd0)])
+    z0 = np.concatenate(
+        [[scenario.start.x_m, scenario.start.y_m, math.radians(scenario.start.heading_deg) - rel.mean()], q0]
+    )
+    zd0 = np.concatenate([[0.0, 0.0, -reld.mean()], qd0])
+    _, centres, joints = snake.frames(z0)
+    if at_rest == "centre":
+        jac = snake.point_jacobian(centres, np.arange(snake.n), centres, joints)
+        zd0[0:2] -= np.einsum("k,kai,i->a", snake.mass, jac, zd0) / snake.mass.sum()
+    elif at_rest != "head":
+        raise ValueError(f"at_rest must be 'centre' or 'head', got {at_rest!r}")
+    return np.concatenate([z0[free], zd0[free]])
+
+
+def _stop_events(scenario, y0) -> list:
+    """solve_ivp's terminal events: the head crossing the line, its yaw turned by the revolutions (either way)."""
+    events = []
+    line = scenario.stop.line_x_m
+    if line is not None:
+
+        def crossed(t, y):
+            return y[0] - line
+
+        crossed.terminal, crossed.direction = True, 1
+        events.append(crossed)
+    if scenario.stop.revolutions is not None:  # the head's yaw has turned by the revolutions, either way
+        turn, yaw0 = 2 * math.pi * scenario.stop.revolutions, y0[2]
+
+        def circled(t, y):
+            return abs(y[2] - yaw0) - turn
+
+        circled.terminal, circled.direction = True, 1
+        events.append(circled)
+    return events
+
+
 def simulate_reference(
     scenario: Scenario, geometry, *, joint_path=None, rtol=1e-7, atol=1e-9, at_rest="centre", t_eval=None, toe_rad=0.0
 ) -> ReferenceRun:
@@ -254,7 +314,6 @@ def simulate_reference(
     if any(f.time_s != 0.0 or f.mode != "free" for f in scenario.failures):
         raise ValueError("the reference model handles joints that are free from t = 0 only")
     snake = PlanarSnake(geometry)
-    amp, omega, phase, bias = serpenoid_parameters(scenario.gait)
     failed = np.array(sorted(f.joint - 1 for f in scenario.failures), dtype=int)
     working = np.setdiff1d(np.arange(snake.n - 1), failed)
     free = np.concatenate([[0, 1, 2], 3 + failed])
@@ -263,17 +322,7 @@ def simulate_reference(
     c_joint = scenario.friction.c_joint
     hidden = HiddenForces.from_effects(scenario.effects)
 
-    if joint_path is None:
-
-        def prescribed(t):
-            arg = omega * t - phase
-            return (amp * np.sin(arg) + bias, amp * omega * np.cos(arg), -amp * omega**2 * np.sin(arg))
-    else:
-        spline = CubicSpline(joint_path[0], joint_path[1], axis=0)
-        d1, d2 = spline.derivative(1), spline.derivative(2)
-
-        def prescribed(t):
-            return spline(t), d1(t), d2(t)
+    prescribed = _prescribed(scenario.gait, joint_path)
 
     def full(t, y):
         q, qd, qdd = prescribed(t)
@@ -299,40 +348,8 @@ def simulate_reference(
         acc = np.linalg.solve(mass_matrix[np.ix_(free, free)], rhs_free)
         return np.concatenate([zd[free], acc])
 
-    # Start as the protocol says: serpenoid angles and rates, head at the start point, mean module
-    # yaw along the heading, centre of mass at rest, mean module yaw not turning.
-    q0, qd0, _ = prescribed(0.0)
-    rel = np.concatenate([[0.0], np.cumsum(q0)])
-    reld = np.concatenate([[0.0], np.cumsum(qd0)])
-    z0 = np.concatenate(
-        [[scenario.start.x_m, scenario.start.y_m, math.radians(scenario.start.heading_deg) - rel.mean()], q0]
-    )
-    zd0 = np.concatenate([[0.0, 0.0, -reld.mean()], qd0])
-    _, centres, joints = snake.frames(z0)
-    if at_rest == "centre":
-        jac = snake.point_jacobian(centres, np.arange(snake.n), centres, joints)
-        zd0[0:2] -= np.einsum("k,kai,i->a", snake.mass, jac, zd0) / snake.mass.sum()
-    elif at_rest != "head":
-        raise ValueError(f"at_rest must be 'centre' or 'head', got {at_rest!r}")
-    y0 = np.concatenate([z0[free], zd0[free]])
-
-    events = []
-    line = scenario.stop.line_x_m
-    if line is not None:
-
-        def crossed(t, y):
-            return y[0] - line
-
-        crossed.terminal, crossed.direction = True, 1
-        events.append(crossed)
-    if scenario.stop.revolutions is not None:  # the head's yaw has turned by the revolutions, either way
-        turn, yaw0 = 2 * math.pi * scenario.stop.revolutions, y0[2]
-
-        def circled(t, y):
-            return abs(y[2] - yaw0) - turn
-
-        circled.terminal, circled.direction = True, 1
-        events.append(circled)
+    y0 = _start_state(snake, scenario, prescribed, free, at_rest)
+    events = _stop_events(scenario, y0)
     start = time.perf_counter()
     sol = solve_ivp(
         rhs,

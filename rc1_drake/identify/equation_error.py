@@ -324,6 +324,39 @@ def _clustered_fit(A, b, cluster, lower, upper):
     return theta, cov, float(np.sqrt(np.mean(r**2))) if len(r) else math.nan, null
 
 
+def _blocks(trials, dynamics, cols, fixed, sgn_smoothing_m_s, rng, extra_noise):
+    """Each usable trial's rows, three ways (as measured, with the sensors' noise added again, every other sample),
+    projected past the slip gate: (passes, trials used, trials skipped, samples, each trial's gate)."""
+    passes = ([], [], [])  # (A, b, cluster, samples) blocks: as measured, noise added again, every other sample
+    used, skipped, total, gates = [], [], 0, []
+    for trial in trials:
+        measured = trajectory_samples(trial)
+        if measured is None:
+            skipped.append(trial.trial_id)
+            continue
+        noisier = trajectory_samples(trial, rng=rng, extra_noise=extra_noise)
+        sparser = trajectory_samples(trial, every=2)
+        rows = [dynamics.rows(measured), dynamics.rows(noisier), dynamics.rows(sparser)]
+        gate = [
+            max(GATE_EPS * sgn_smoothing_m_s, GATE_SIGMAS * float(np.sqrt(np.mean((rows[1][u] - rows[0][u]) ** 2))))
+            for u in ("u_long", "u_lat")
+        ]
+        gates.append(gate)
+        for blocks, r, t in zip(passes, rows, (measured.t, noisier.t, sparser.t), strict=True):
+            A, b, index = _projected(r, *gate)
+            blocks.append(
+                (
+                    A[:, cols],
+                    b - A @ fixed,
+                    [f"{trial.trial_id}/{int(t[i] // BLOCK_S)}" for i in index],
+                    len(np.unique(index)),
+                )
+            )
+        used.append(trial.trial_id)
+        total += len(measured.t)
+    return passes, used, skipped, total, gates
+
+
 def fit_equation_error(
     trials,
     *,
@@ -355,34 +388,9 @@ def fit_equation_error(
     lower = np.array([bounds[n][0] for n in free])
     upper = np.array([bounds[n][1] for n in free])
     dynamics = InverseDynamics(sgn_smoothing_m_s, effects)
-    rng = np.random.default_rng(seed)
-    passes = ([], [], [])  # (A, b, cluster, samples) blocks: as measured, noise added again, every other sample
-    used, skipped, total, gates = [], [], 0, []
-    for trial in trials:
-        measured = trajectory_samples(trial)
-        if measured is None:
-            skipped.append(trial.trial_id)
-            continue
-        noisier = trajectory_samples(trial, rng=rng, extra_noise=extra_noise)
-        sparser = trajectory_samples(trial, every=2)
-        rows = [dynamics.rows(measured), dynamics.rows(noisier), dynamics.rows(sparser)]
-        gate = [
-            max(GATE_EPS * sgn_smoothing_m_s, GATE_SIGMAS * float(np.sqrt(np.mean((rows[1][u] - rows[0][u]) ** 2))))
-            for u in ("u_long", "u_lat")
-        ]
-        gates.append(gate)
-        for blocks, r, t in zip(passes, rows, (measured.t, noisier.t, sparser.t), strict=True):
-            A, b, index = _projected(r, *gate)
-            blocks.append(
-                (
-                    A[:, cols],
-                    b - A @ fixed,
-                    [f"{trial.trial_id}/{int(t[i] // BLOCK_S)}" for i in index],
-                    len(np.unique(index)),
-                )
-            )
-        used.append(trial.trial_id)
-        total += len(measured.t)
+    passes, used, skipped, total, gates = _blocks(
+        trials, dynamics, cols, fixed, sgn_smoothing_m_s, np.random.default_rng(seed), extra_noise
+    )
     if not used:
         raise Rc1Error("identify: equation error needs a trial with a camera and no failed joint; none was given")
     fits = []

@@ -126,50 +126,23 @@ def identify(
             t.trial_id: dict(zip(START_NAMES, map(float, t.initial_head_rates), strict=True)) for t in campaign.trials
         }
     estimation, held = split_trials(campaign, trials=trials, validation=validation)
-    began, spread = time.perf_counter(), None
+    began = time.perf_counter()
     kept = Checkpoint(checkpoint) if checkpoint else None
+    common = dict(trials=trials, parameters=parameters, start=friction, effects=effects)
+    simulated = dict(
+        workers=workers, scheduler=scheduler, input_noise_samples=input_noise_samples, checkpoint=kept, on_fit=on_fit
+    )
+    spread = None
     if method == "avs":
-        result, spread = identify_avs(
-            campaign,
-            trials=trials,
-            iterations=iterations,
-            workers=workers,
-            scheduler=scheduler,
-            parameters=parameters,
-            progress=progress,
-            start=friction,
-            effects=effects,
-            input_noise_samples=input_noise_samples,
-            checkpoint=kept,
-            on_fit=on_fit,
-        )
+        result, spread = identify_avs(campaign, iterations=iterations, progress=progress, **common, **simulated)
     elif method == "program":
         if start is None:
-            friction, seed = seeded_start(campaign, trials=trials, start=friction, parameters=parameters)
-            if seed is not None:
-                used = [n for n, ok in zip(seed.names, seed.identifiable, strict=True) if ok]
-                notes.append(
-                    f"start: equation error identified {', '.join(used) or 'nothing'} "
-                    f"({seed.wall_time_s:.0f} s, no simulation); the rest from the paper's manual values"
-                )
-                record["equation_error_start"] = seed.to_json()
-        result, spread = identify_program(
-            campaign,
-            trials=trials,
-            workers=workers,
-            scheduler=scheduler,
-            parameters=parameters,
-            max_iterations=iterations,
-            start=friction,
-            effects=effects,
-            input_noise_samples=input_noise_samples,
-            checkpoint=kept,
-            on_fit=on_fit,
-        )
+            common["start"], note, seed = _seeded(campaign, trials, friction, parameters)
+            notes += [note] if note else []
+            record.update({"equation_error_start": seed.to_json()} if seed is not None else {})
+        result, spread = identify_program(campaign, max_iterations=iterations, **common, **simulated)
     else:
-        result = identify_equation_error(
-            campaign, trials=trials, start=friction, parameters=parameters, effects=effects
-        )
+        result = identify_equation_error(campaign, **common)
         if on_fit:
             on_fit(result)
     warnings = spread.warnings() if spread is not None else result.warnings()
@@ -192,6 +165,20 @@ def identify(
         record=record,
         resumed=kept.resumed if kept else 0,
     )
+
+
+def _seeded(campaign, trials, friction: Friction, parameters):
+    """The program fit's start where no model file gives one: what equation error identifies, the rest from
+    `friction`; (start, the report's note or "", equation error's result or None)."""
+    start, seed = seeded_start(campaign, trials=trials, start=friction, parameters=parameters)
+    if seed is None:
+        return start, "", None
+    used = [n for n, ok in zip(seed.names, seed.identifiable, strict=True) if ok]
+    note = (
+        f"start: equation error identified {', '.join(used) or 'nothing'} "
+        f"({seed.wall_time_s:.0f} s, no simulation); the rest from the paper's manual values"
+    )
+    return start, note, seed
 
 
 def held_warning(held: list[str], free: list[str]) -> str:
