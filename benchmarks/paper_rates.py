@@ -229,10 +229,16 @@ def look_alikes(row: dict, cell: Cell) -> set:
 def whole_runs(rows: list) -> dict:
     """Per campaign (cell, seed), the wall seconds of a diagnosis of it run whole and alone: not resumed from a
     checkpoint (its replays cost nothing), not timed across a pause or beside other work, nor on an older engine. The
-    default's own where it has one, else another variant's: a variant that replayed only where it parted from another
-    costs about what that one did."""
+    default's own where it has one, else another variant's that made as many replays as the default did: it costs
+    what the default's would have (one that made more, an extra linearization, does not)."""
     flags = ("resumed", "paused", "shared_cpu", "older_engine")
-    whole = [r for r in rows if not any(r.get(flag) for flag in flags)]
+    made = {(r["cell"], r["seed"]): r.get("simulations") for r in rows if r.get("variant", "default") == "default"}
+    whole = [
+        r
+        for r in rows
+        if not any(r.get(flag) for flag in flags)
+        and (r.get("variant", "default") == "default" or r.get("simulations") == made.get((r["cell"], r["seed"])))
+    ]
     ordered = sorted(whole, key=lambda r: r.get("variant", "default") == "default")  # the default's last: it wins
     return {(r["cell"], r["seed"]): r["wall_s"] for r in ordered}
 

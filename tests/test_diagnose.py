@@ -862,12 +862,13 @@ def test_the_paper_rates_table_counts_a_seed_only_once_every_cell_is_diagnosed(m
 
 def test_the_paper_rates_minutes_are_a_whole_run_of_the_campaign_under_any_variant(monkeypatch):
     """A variant replays only where it parts from another's checkpoint: its minutes are that whole run's, its own
-    whole run's where it has one, and never a run resumed, paused, timed beside other work or on an older engine."""
+    whole run's where it has one, and never a run resumed, paused, timed beside other work or on an older engine, nor
+    one that made more replays than the default did."""
     monkeypatch.syspath_prepend(str(REPO / "benchmarks"))
     paper_rates = importlib.import_module("paper_rates")
 
-    def row(seed, variant, wall_s, **flags):
-        return {"cell": "none", "seed": seed, "variant": variant, "wall_s": wall_s, **flags}
+    def row(seed, variant, wall_s, simulations=500, **flags):
+        return {"cell": "none", "seed": seed, "variant": variant, "wall_s": wall_s, "simulations": simulations, **flags}
 
     rows = [
         row(102, "other", 300.0),
@@ -878,6 +879,8 @@ def test_the_paper_rates_minutes_are_a_whole_run_of_the_campaign_under_any_varia
         row(104, "default", 30.0, resumed=400),
         row(105, "default", 99.0, paused=True),
         row(105, "other", 400.0, older_engine=True),
+        row(106, "default", 50.0, resumed=500),
+        row(106, "other", 600.0, simulations=650),  # more replays than the default's: not what the default costs
     ]
     assert paper_rates.whole_runs(rows) == {("none", 102): 300.0, ("none", 103): 200.0}
     defaults = [{**r, "outcome": "right", "coverage": [], "accepted": []} for r in rows if r["variant"] == "default"]
