@@ -332,11 +332,15 @@ def section(rows: list, cells: list, trials_per_case: int, which: str, timed: di
     return "\n\n".join([head, body, summary, targets(rows, cells), verdicts_read(rows)]), summary
 
 
+def verdicts_held(rows: list) -> dict:
+    """diagnose.verdict.verdict_rates of the rows of the grid's cells, each with what its cell hides."""
+    kinds = {c.label: hidden_kind(c) for c in CELLS}
+    return verdict_rates([{**r, "hidden": kinds[r["cell"]]} for r in rows if r["cell"] in kinds])
+
+
 def verdicts_read(rows: list) -> str:
     """How each verdict of the report read on `rows`: in how many campaigns it held (diagnose.verdict's meaning)."""
-    kinds = {c.label: hidden_kind(c) for c in CELLS}
-    rates = verdict_rates([{**r, "hidden": kinds[r["cell"]]} for r in rows if r["cell"] in kinds])
-    said = [f"`{v}` held ({x['meaning']}) on {x['held']} of {x['campaigns']}" for v, x in rates.items()]
+    said = [f"`{v}` held ({x['meaning']}) on {x['held']} of {x['campaigns']}" for v, x in verdicts_held(rows).items()]
     return "How the report's verdicts read on these campaigns (its second line): " + "; ".join(said) + "."
 
 
@@ -431,7 +435,6 @@ def main():
     print(text, apart, sep="\n\n")
     if args.markdown:
         write_block(PAGE, BLOCK, WRITER, text + "\n\n" + apart)
-        kinds = {c.label: hidden_kind(c) for c in CELLS}
         basis = reported or chose  # the verdicts' rates from the reported seeds once one is complete
         used = sorted({r["seed"] for r in basis})
         seeds = seed_span(used) + ("" if reported else ", the seeds that chose a rule") if used else ""
@@ -440,7 +443,7 @@ def main():
             "design": f"{args.trials_per_case} trials each of none, J7, J13, J7+bias, 10 s; {len(basis)} campaigns, "
             + (seeds or "none yet"),
             "command": "python benchmarks/paper_rates.py --markdown",
-            "verdicts": verdict_rates([{**r, "hidden": kinds[r["cell"]]} for r in basis if r["cell"] in kinds]),
+            "verdicts": verdicts_held(basis),
         }
         RATES_FILE.write_text(json.dumps(rates, indent=1) + "\n")
         where = f"`benchmarks/paper_rates.py`, {seeds or 'no seed yet'}"

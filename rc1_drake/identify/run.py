@@ -137,9 +137,10 @@ def identify(
         result, spread = identify_avs(campaign, iterations=iterations, progress=progress, **common, **simulated)
     elif method == "program":
         if start is None:
-            common["start"], note, seed = _seeded(campaign, trials, friction, parameters)
-            notes += [note] if note else []
-            record.update({"equation_error_start": seed.to_json()} if seed is not None else {})
+            common["start"], seed = seeded_start(campaign, trials=trials, start=friction, parameters=parameters)
+            if seed is not None:
+                notes.append(_seed_note(seed))
+                record["equation_error_start"] = seed.to_json()
         result, spread = identify_program(campaign, max_iterations=iterations, **common, **simulated)
     else:
         result = identify_equation_error(campaign, **common)
@@ -167,18 +168,13 @@ def identify(
     )
 
 
-def _seeded(campaign, trials, friction: Friction, parameters):
-    """The program fit's start where no model file gives one: what equation error identifies, the rest from
-    `friction`; (start, the report's note or "", equation error's result or None)."""
-    start, seed = seeded_start(campaign, trials=trials, start=friction, parameters=parameters)
-    if seed is None:
-        return start, "", None
+def _seed_note(seed) -> str:
+    """The report's line on the program fit's start where equation error chose it (seeded_start)."""
     used = [n for n, ok in zip(seed.names, seed.identifiable, strict=True) if ok]
-    note = (
+    return (
         f"start: equation error identified {', '.join(used) or 'nothing'} "
         f"({seed.wall_time_s:.0f} s, no simulation); the rest from the paper's manual values"
     )
-    return start, note, seed
 
 
 def held_warning(held: list[str], free: list[str]) -> str:
