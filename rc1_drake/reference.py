@@ -60,17 +60,27 @@ class HiddenForces:
     joint: dict = dataclasses.field(default_factory=dict)
     seam_Nm: float = 0.0  # a floor seam: a torque turning the head counter-clockwise as its centre crosses seam_x_m
     seam_x_m: float = 0.3
+    stop_gain: float = STOP_GAIN  # a failed joint's stop beyond +-38 deg: another stop's form (issue 67)
+    stop_damping: float = STOP_DAMPING
 
     @classmethod
     def from_effects(cls, effects: dict) -> HiddenForces:
-        """The forces of `effects`' keys tail_tether_N, floor_seam_Nm and floor_seam_x_m, and
+        """The forces of `effects`' keys tail_tether_N, floor_seam_Nm and floor_seam_x_m, reference_stop_Nm_per_rad
+        and reference_stop_Nm_s_per_rad (the failed joints' PD stop beyond the limit), and
         discrepancy_<group>_<kind>_<unit>; other keys are not forces (the toe is toe_rad; the sensor faults act on
         the command and the readings)."""
         out = cls(
             tether_N=float(effects.get("tail_tether_N", 0.0)),
             seam_Nm=float(effects.get("floor_seam_Nm", 0.0)),
             seam_x_m=float(effects.get("floor_seam_x_m", cls.seam_x_m)),
+            stop_gain=float(effects.get("reference_stop_Nm_per_rad", STOP_GAIN)),
+            stop_damping=float(effects.get("reference_stop_Nm_s_per_rad", STOP_DAMPING)),
         )
+        if out.stop_gain <= 0.0 or out.stop_damping < 0.0:
+            raise ValueError(
+                f"reference: the failed joint's stop needs a gain > 0 and a damping >= 0, got "
+                f"{out.stop_gain} N m/rad and {out.stop_damping} N m s/rad"
+            )
         for key, value in effects.items():
             found = re.fullmatch(r"discrepancy_(head|front|middle|rear|tail|failed_joint)_([a-z_]+?)_(N|Nm)\w*", key)
             if not found:
@@ -86,6 +96,12 @@ class HiddenForces:
 
     def __bool__(self) -> bool:
         return bool(self.tether_N or self.sites or self.joint or self.seam_Nm)
+
+    def stop_torque(self, q, qd) -> np.ndarray:
+        """The failed joints' limit torques at angles q and rates qd (arrays): the paper's PD beyond +-38 deg
+        (section 3), with this truth's gain and damping."""
+        over = np.abs(q) - LIMIT_RAD
+        return np.where(over > 0, -np.sign(q) * self.stop_gain * over - self.stop_damping * qd, 0.0)
 
     def seam_torque(self, head_x) -> float:
         """The seam's torque on the head (N m, counter-clockwise) with its centre at x = head_x."""
@@ -338,9 +354,7 @@ def simulate_reference(
         mass_matrix, velocity_force = snake.dynamics_terms(z, zd)
         force = velocity_force + snake.wheel_force(z, zd, scenario.friction, eps, toe_rad)
         qf, qfd = z[3 + failed], zd[3 + failed]
-        over = np.abs(qf) - LIMIT_RAD
-        stop = np.where(over > 0, -np.sign(qf) * STOP_GAIN * over - STOP_DAMPING * qfd, 0.0)
-        force[3 + failed] += -c_joint * qfd + stop
+        force[3 + failed] += -c_joint * qfd + hidden.stop_torque(qf, qfd)
         if hidden:
             force += snake.hidden_force(z, zd, hidden, eps)
             force[3 + failed] += hidden.joint_torque(qf, qfd)

@@ -93,8 +93,9 @@ DESIGNS = {"paper": PAPER_DESIGN, "identification": IDENTIFICATION_DESIGN}
 # What the independent model can express: the wheel toe, the sensor faults (they act on its command and on what its
 # sensors read, not on its physics), the tail's tether and the discrepancy terms (reference.HiddenForces).
 # A floor seam (reference.HiddenForces) is in no other model, nor in the library: what discovery makes of a shape
-# it has no term for.
-REFERENCE_ONLY = ("floor_seam_Nm", "floor_seam_x_m")
+# it has no term for; the failed joints' stop beyond the limit, of another gain and damping, is another form of
+# failed joint (issue 67).
+REFERENCE_ONLY = ("floor_seam_Nm", "floor_seam_x_m", "reference_stop_Nm_per_rad", "reference_stop_Nm_s_per_rad")
 REFERENCE_EFFECTS = (
     "wheel_toe_deg",
     "tail_tether_N",
@@ -137,7 +138,14 @@ def synthesize_campaign(
             f"the discrepancy terms (rc1 effects) and a floor seam only, not {', '.join(beyond)}"
         )
     if truth_model == "drake" and (only := sorted(set(effects or {}) & set(REFERENCE_ONLY))):
-        raise Rc1Error(f"synthesize: {', '.join(only)}: only the reference truth model has a floor seam")
+        raise Rc1Error(
+            f"synthesize: {', '.join(only)}: only the reference truth model has a floor seam and its own failed-joint "
+            "stop"
+        )
+    for key, least in (("reference_stop_Nm_per_rad", "> 0"), ("reference_stop_Nm_s_per_rad", ">= 0")):
+        value = (effects or {}).get(key)
+        if value is not None and not (value > 0 or (value == 0 and least == ">= 0")):
+            raise Rc1Error(f"synthesize: {key} must be {least}, got {value}")
     if record_after_s < 0 or abs(record_after_s / sample_period_s - round(record_after_s / sample_period_s)) > 1e-9:
         raise Rc1Error(
             f"synthesize: record_after_s must be a non-negative multiple of the sample period, got {record_after_s}"

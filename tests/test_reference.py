@@ -124,3 +124,32 @@ def test_hidden_forces_read_their_keys_and_act_as_defined():
     assert seam.seam_torque(1.0) == 2.0 and seam.seam_torque(1.0 + SEAM_WIDTH_M) == pytest.approx(2.0 * np.exp(-0.5))
     with pytest.raises(ValueError, match="unknown discrepancy term 'discrepancy_head_spin_N'"):
         HiddenForces.from_effects({"discrepancy_head_spin_N": 1.0})
+
+
+def test_the_reference_failed_joint_stop_is_a_pd_beyond_the_limit_of_its_truth_gain():
+    """Another form of failed joint (issue 67): hand values of the stop's torque (zero inside +-38 deg; past it,
+    -k (|q| - 38 deg) sgn(q) - d q_dot), and a softer stop lets a free joint 7 swing farther past the limit."""
+    from rc1_drake.config import Rc1Error
+    from rc1_drake.engine.dynamics import plant_numbers
+    from rc1_drake.reference import LIMIT_RAD, HiddenForces
+    from rc1_drake.synthesize import Case, synthesize_campaign
+
+    soft = HiddenForces.from_effects({"reference_stop_Nm_per_rad": 20.0, "reference_stop_Nm_s_per_rad": 0.5})
+    q, qd = np.array([0.1, LIMIT_RAD + 0.05, -LIMIT_RAD - 0.1]), np.array([1.0, 0.2, -0.4])
+    np.testing.assert_allclose(soft.stop_torque(q, qd), [0.0, -20.0 * 0.05 - 0.5 * 0.2, 20.0 * 0.1 + 0.5 * 0.4])
+    assert HiddenForces.from_effects({}).stop_gain == 200.0
+    with pytest.raises(ValueError, match="stop needs a gain > 0"):
+        HiddenForces.from_effects({"reference_stop_Nm_per_rad": 0.0})
+    with pytest.raises(Rc1Error, match="reference_stop_Nm_per_rad: only the reference truth model"):
+        synthesize_campaign(None, design=[Case([7], 1)], effects={"reference_stop_Nm_per_rad": 20.0})
+    reach = {}
+    for gain in (20.0, 500.0):
+        scenario = Scenario(
+            failures=[Failure(joint=7)],
+            numerics=Numerics(sgn_smoothing_m_s=5e-3),
+            effects={"reference_stop_Nm_per_rad": gain},
+            stop=Stop(time_limit_s=3.0),
+        )
+        ref = simulate_reference(scenario, plant_numbers().geometry, rtol=1e-5, atol=1e-7)
+        reach[gain] = np.abs(ref.q[:, 6]).max() - LIMIT_RAD
+    assert reach[20.0] > 0.0 and reach[20.0] > 2.0 * max(reach[500.0], 0.0)  # measured 0.022 and 0.0074 rad

@@ -179,11 +179,10 @@ class Diagnosis:
             rate_text(self.verdict),
             f"added: {', '.join(added) + ' (95%)' if added else 'nothing'}",
         ]
+        risen = []
         if self.waterfall:
-            first, last = self.waterfall[0], self.waterfall[-1]
-            error = f"mean Eq. 6 error: {first['mean_eq6_error_pct']:.2f}% ({first['model']})"
-            moved = f" -> {last['mean_eq6_error_pct']:.2f}% ({last['model']})" if len(self.waterfall) > 1 else ""
-            lines.append(error + (moved or ", where the model stayed"))
+            line, risen = headline(self.waterfall)
+            lines.append(line)
         left = ", ".join(f"{k} ({o['off_cm']:.0f} cm off)" for k, o in self.unexplained_trials.items())
         lines.append(f"trials still unexplained: {left or 'none'}")
         if self.scatter:
@@ -191,7 +190,7 @@ class Diagnosis:
                 f"the failed joint's trial-by-trial scatter taken as noise: {self.scatter[0]:.2g} probe steps of its "
                 f"terms (maximum likelihood {self.scatter[1]:.2g}; diagnose/scatter.py)"
             )
-        return lines
+        return lines + risen
 
     def format(self) -> str:
         """The report `rc1 diagnose` prints: the answer first (summary), then each round's ranking, the candidates'
@@ -279,6 +278,37 @@ def _cases(trials, eq6, fit_pct, without_miss) -> dict[str, dict]:
         }
         for c, vs in out.items()
     }
+
+
+RAW, MISS_OFF = "mean_eq6_error_pct", "mean_eq6_without_replay_miss_pct"
+
+
+def headline(waterfall: list[dict]) -> tuple[str, list[str]]:
+    """The error a user watches, before -> after (held out): raw, and with the replay's own miss on each trial's
+    motion taken off (the twin bootstrap: what no model change removes); and a line for each case whose raw error
+    rose while it fell with that miss taken off, saying why."""
+    first, last = waterfall[0], waterfall[-1]
+    if len(waterfall) == 1:
+        return (
+            f"mean Eq. 6 error: {first[RAW]:.2f}% ({first['model']}), where the model stayed; with the replay's own "
+            f"miss taken off {first[MISS_OFF]:.2f}%"
+        ), []
+    line = (
+        f"mean Eq. 6 error: {first[RAW]:.2f}% ({first['model']}) -> {last[RAW]:.2f}% ({last['model']}); with the "
+        f"replay's own miss taken off {first[MISS_OFF]:.2f}% -> {last[MISS_OFF]:.2f}%"
+    )
+    risen = []
+    for case, before in first["cases"].items():
+        after = last["cases"].get(case)
+        if after is None or after[RAW] <= before[RAW] or after[MISS_OFF] >= before[MISS_OFF]:
+            continue
+        risen.append(
+            f"{case}: its error rose {before[RAW]:.2f}% -> {after[RAW]:.2f}% while it fell {before[MISS_OFF]:.2f}% -> "
+            f"{after[MISS_OFF]:.2f}% with the replay's own miss taken off: that miss (the replay's error on this "
+            "case's motion even at the truth, the twin bootstrap) had offset part of the model's; once the model's "
+            "is gone it is what is left, and no change of the model removes it"
+        )
+    return line, risen
 
 
 def waterfall_step(label, score: HeldOutScore, trials) -> dict:

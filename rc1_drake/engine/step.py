@@ -48,12 +48,14 @@ def _in_window(q, v, v_star, dt, d, sign, limit):
 @jit
 def limit_constraints(q, v, v_star, A, dt, lower, upper, locked):
     """SAP's joint-limit constraints of the step (module docstring): for each limit within the window, its
-    dof, sign (+1 lower, -1 upper), v_hat and 1/R; returns those arrays and their count."""
+    dof, sign (+1 lower, -1 upper), v_hat and 1/R; returns those arrays and their count. Room for both limits of
+    every joint: a window wider than a joint's range (a rate past ~650 rad/s, or a start far beyond a limit) holds
+    both."""
     nj = lower.shape[0]
-    dofs = np.empty(nj, dtype=np.int64)
-    signs = np.empty(nj)
-    v_hat = np.empty(nj)
-    r_inv = np.empty(nj)
+    dofs = np.empty(2 * nj, dtype=np.int64)
+    signs = np.empty(2 * nj)
+    v_hat = np.empty(2 * nj)
+    r_inv = np.empty(2 * nj)
     count = 0
     for j in range(nj):
         d = 3 + j

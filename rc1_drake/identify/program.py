@@ -191,8 +191,13 @@ def screen(
     it finds not identifiable frozen at its start value, so that the fit does not wander along
     directions the data do not see (and report a number for them). Returns (parameters, Uncertainty)."""
     parameters = parameters or DEFAULT_PARAMETERS
-    first = uncertainty(
-        residuals, start, parameters=parameters, effects=effects, input_noise_samples=input_noise_samples
+    first = uncertainty(  # what the noise lets the data see: the trials' disagreement is for the result's interval
+        residuals,
+        start,
+        parameters=parameters,
+        effects=effects,
+        input_noise_samples=input_noise_samples,
+        trial_jackknife_too=False,
     )
     hidden = {n for n, ok in zip(first.names, first.identifiable, strict=True) if not ok}
     return [dataclasses.replace(p, frozen=p.frozen or p.name in hidden) for p in parameters], first
@@ -215,27 +220,70 @@ def identify_program(
 ):
     """The program fit on the chosen trials (the model with `effects`, held fixed), then the uncertainty
     of its result over every originally free parameter. With `screened`, the parameters the start's
-    uncertainty finds not identifiable stay at their start values (screen()); the result's warnings
-    say so; `input_noise_samples` goes to the result's uncertainty(); `checkpoint` (evaluate.Checkpoint) keeps every
-    replay's result; `on_fit(result)` is called as the fit ends, before its uncertainty. Returns (ProgramResult,
+    uncertainty finds not identifiable stay at their start values (screen()); where the noise at the fit's end
+    sees one of them, it is released and the fit goes on from there (identifiability judged where the fit ended);
+    the result's warnings name those still held, and the uncertainty calls none of them identifiable.
+    `input_noise_samples` goes to the result's uncertainty(); `checkpoint` (evaluate.Checkpoint) keeps every
+    replay's result; `on_fit(result)` is called as each fit ends, before its uncertainty. Returns (ProgramResult,
     Uncertainty)."""
     chosen = campaign.chosen(trials)
-    parameters = parameters or DEFAULT_PARAMETERS
     with make_executor(workers=workers or min(os.cpu_count() or 1, len(chosen)), scheduler=scheduler) as executor:
         residuals = CampaignResiduals(chosen, executor=executor, effects=effects, checkpoint=checkpoint)
-        fitted, first = (
-            screen(residuals, start, parameters=parameters, input_noise_samples=input_noise_samples)
-            if screened
-            else (parameters, None)
+        return fit_screened(
+            residuals,
+            start=start,
+            parameters=parameters,
+            max_iterations=max_iterations,
+            screened=screened,
+            input_noise_samples=input_noise_samples,
+            on_fit=on_fit,
         )
-        result = fit_program(residuals, start=start, parameters=fitted, max_iterations=max_iterations)
-        result.held = [p.name for p, q in zip(parameters, fitted, strict=True) if q.frozen and not p.frozen]
+
+
+def fit_screened(
+    residuals, *, start: Friction, parameters=None, max_iterations=10, screened=True, input_noise_samples=0, on_fit=None
+):
+    """identify_program's stages on `residuals` (a CampaignResiduals, or any callable of (friction, effects) with
+    its attributes): the screen at the start, the fit, its uncertainty, and, where the noise at the fit's end sees
+    a coefficient the screen held, the fit released there and its uncertainty again. Returns (ProgramResult,
+    Uncertainty), the uncertainty calling no held coefficient identifiable."""
+    parameters = parameters or DEFAULT_PARAMETERS
+    fitted, first = (
+        screen(residuals, start, parameters=parameters, input_noise_samples=input_noise_samples)
+        if screened
+        else (parameters, None)
+    )
+
+    def fitted_from(friction, free, before=None):
+        result = fit_program(residuals, start=friction, parameters=free, max_iterations=max_iterations)
+        result.held = [p.name for p, q in zip(parameters, free, strict=True) if q.frozen and not p.frozen]
+        if before is not None:  # one fit from the first's start, counted whole
+            result.start, result.cost_start = before.start, before.cost_start
+            result.iterations += before.iterations
+            result.simulations += before.simulations
         if on_fit:
             on_fit(result)
         spread = uncertainty(residuals, result.friction, parameters=parameters, input_noise_samples=input_noise_samples)
+        return result, spread
+
+    result, spread = fitted_from(start, fitted)
+    seen = _seen_at(spread, fitted)
+    if seen:  # identifiable judged where the fit ended: the start's screen may have held what the data see here
+        fitted = [dataclasses.replace(p, frozen=p.frozen and p.name not in seen) for p in fitted]
+        result.simulations += spread.simulations
+        result, spread = fitted_from(result.friction, fitted, before=result)
+    spread.identifiable = [ok and n not in result.held for n, ok in zip(spread.names, spread.identifiable, strict=True)]
     result.screening = first
     result.simulations += first.simulations if first else 0
     return result, spread
+
+
+def _seen_at(spread: Uncertainty, fitted) -> set:
+    """The coefficients the fit held (`fitted`'s frozen ones among `spread`'s) whose relative standard error from
+    the noise alone, at the fit's end, is below the screen's 30%."""
+    held = {p.name for p in fitted if p.frozen}
+    rows = zip(spread.names, spread.values, spread.noise_standard_errors, strict=True)
+    return {n for n, v, se in rows if n in held and math.isfinite(se) and se < 0.3 * abs(v)}
 
 
 def identify_equation_error(campaign, *, trials=None, start=PAPER_MANUAL, parameters=None, effects=None, seed=0):

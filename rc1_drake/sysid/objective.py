@@ -26,6 +26,7 @@ class CampaignResiduals:
         parts = self.evaluator.map(replay_residual, jobs, "residuals")
         self.simulations += len(self.trials)
         self.channels = np.concatenate([residual_channels(p) for p in parts])
+        self.groups = np.concatenate([np.full(len(p), k) for k, p in enumerate(parts)])
         return np.concatenate(parts)
 
     def with_jacobian(self, friction: Friction, effects, names) -> tuple:
@@ -35,6 +36,7 @@ class CampaignResiduals:
         parts = self.evaluator.map(replay_residual_and_jacobian, jobs, "residuals and their Jacobian")
         self.simulations += len(self.trials)
         self.channels = np.concatenate([residual_channels(r) for r, _ in parts])
+        self.groups = np.concatenate([np.full(len(r), k) for k, (r, _) in enumerate(parts)])
         return np.concatenate([r for r, _ in parts]), np.vstack([j for _, j in parts])
 
     def input_noise(

@@ -63,6 +63,26 @@ def larger_covariance(s, j) -> np.ndarray:
     return np.outer(scale, scale) * ((back * np.maximum(lam, 1.0)) @ back.T)
 
 
+def trial_jackknife(jac, r, groups) -> np.ndarray | None:
+    """The linearized leave-one-trial-out jackknife's covariance of a least-squares step from residuals r (rows
+    grouped by trial, `groups`): each trial left out in turn, the step -pinv(J_rest) r_rest on the rest, and
+    (G - 1)/G times the scatter of those G steps. It holds what the sandwich assumes away: residuals correlated
+    within a trial (a misfit that persists along a path) and trials that ask for different parameters (a model
+    whose form is not the truth's). None with fewer than three trials."""
+    if groups is None or len(groups) != len(r):
+        return None
+    labels = np.unique(groups)
+    if len(labels) < 3:
+        return None
+    steps = []
+    for g in labels:
+        rest = groups != g
+        steps.append(-np.linalg.lstsq(jac[rest], r[rest], rcond=1e-9)[0])
+    steps = np.array(steps)
+    centred = steps - steps.mean(axis=0)
+    return (len(labels) - 1) / len(labels) * centred.T @ centred
+
+
 @dataclasses.dataclass
 class Uncertainty:
     names: list[str]
@@ -73,6 +93,8 @@ class Uncertainty:
     identifiable: list[bool]
     residual_rms: float  # of the standardized residuals
     simulations: int
+    # the sandwich's standard errors (every row independent), before the trial jackknife widened them where larger
+    noise_standard_errors: list[float] = dataclasses.field(default_factory=list)
 
     def warnings(self) -> list[str]:
         return [
@@ -107,14 +129,17 @@ def uncertainty(
     max_relative_error=0.3,
     effects=None,
     input_noise_samples: int = INPUT_NOISE_SAMPLES,
+    trial_jackknife_too: bool = True,
 ) -> Uncertainty:
     """Standard errors and correlations of the free parameters from the residual Jacobian at
     (`friction`, `effects`): the sandwich (J^T J)^-1 J^T S J (J^T J)^-1 of least squares with S the
     residual variance of each channel (channel_variances), plus, with `input_noise_samples`, the
     covariance that the angle noise in the replays' input causes (CampaignResiduals.input_noise: that
     many more replays per trial; INPUT_NOISE_SAMPLES by default, 0 leaves it out and understates the
-    intervals several times over, docs/identification.md); a parameter is identifiable when its relative standard error
-    is below `max_relative_error`. Costs one residual evaluation per free parameter, plus one.
+    intervals several times over, docs/identification.md); with `trial_jackknife_too`, the larger of that and the
+    linearized trial jackknife in every direction (trial_jackknife, larger_covariance), as the diagnosis's fit
+    takes it; a parameter is identifiable when its relative standard error is below `max_relative_error`. Costs one
+    residual evaluation per free parameter, plus one.
 
     The Jacobian is taken in the parameters' own units (forward differences of 5% of the value, at least
     0.5% of the bounds' range for a coefficient, 2% of the range for an effect parameter), not in their
@@ -137,6 +162,10 @@ def uncertainty(
     if input_noise_samples and hasattr(residuals, "input_noise"):
         spread = spread + residuals.input_noise(friction, effects, samples=input_noise_samples)
     cov, null = sandwich(jac, spread)
+    noise_se = [math.inf if null[i] else float(math.sqrt(max(cov[i, i], 0.0))) for i in range(n)]
+    jackknife = trial_jackknife(jac, r0, getattr(residuals, "groups", None)) if trial_jackknife_too else None
+    if jackknife is not None:
+        cov = larger_covariance(cov, jackknife)
     values = [parameter_value(p.name, friction, effects) for p in free]
     se = [math.inf if null[i] else float(math.sqrt(max(cov[i, i], 0.0))) for i in range(n)]
     d = np.sqrt(np.clip(np.diag(cov), 1e-300, None))
@@ -151,6 +180,7 @@ def uncertainty(
         identifiable=identifiable,
         residual_rms=float(np.sqrt(np.mean(r0**2))),
         simulations=getattr(residuals, "simulations", 0) - start_sims,
+        noise_standard_errors=noise_se,
     )
 
 
