@@ -930,3 +930,23 @@ def test_the_probe_kind_that_tells_two_candidates_apart_sees_what_neither_mimics
     chosen, strengths = telling_apart(study, "a", "b")
     assert chosen == "apart, seen well"
     assert strengths == pytest.approx({"a_x": 1.0, "b_x": 3.0 / (3.0 / math.sqrt(2))})
+
+
+def test_an_ambiguous_verdict_names_the_trial_for_each_pair_once():
+    """Three candidates tied: each carries the trials that tell it from the other two (probe.suggest_experiments), so
+    each pair's trial is on two candidates; the verdict's sentence gives each pair's once, and none for a pair with a
+    candidate outside the tie."""
+    from types import SimpleNamespace
+
+    texts = {("a", "b"): "X tells a and b apart", ("a", "c"): "Y tells a and c apart", ("b", "c"): "Z tells b and c"}
+    texts[("a", "d")] = "W tells a and d apart"
+    candidates = []
+    for name in "abc":
+        apart = {(set(p) - {name}).pop(): t for p, t in texts.items() if name in p}
+        candidates.append(SimpleNamespace(name=name, apart=apart, simulated={"held_out_reduction": 0.5}))
+    rounds = [SimpleNamespace(ambiguous=["a", "b", "c"], candidates=candidates)]
+    kind, sentence = verdicts.verdict([], None, rounds)
+    assert kind == "ambiguous"
+    for text in ("X tells a and b apart", "Y tells a and c apart", "Z tells b and c"):
+        assert sentence.count(text) == 1, sentence
+    assert "W tells" not in sentence

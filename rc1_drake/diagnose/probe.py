@@ -134,6 +134,7 @@ def suggest_experiments(rounds, not_detectable, friction, effects, workers, prog
             )
             for c in [c for r in rounds for c in r.candidates if c.name in (a, b)]:
                 c.experiment = text if c.experiment is None else c.experiment + "; " + text
+                c.apart[b if c.name == a else a] = text
 
 
 def apart_strengths(cols_a: np.ndarray, cols_b: np.ndarray) -> np.ndarray:

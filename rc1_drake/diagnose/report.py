@@ -31,6 +31,7 @@ class CandidateResult:
     visibility: dict[str, dict[str, float]] = dataclasses.field(default_factory=dict)  # case -> channel -> per unit
     simulated: dict | None = None  # the check by simulation, when it was made
     experiment: str | None = None  # the kind of trial that would see it / tell it apart
+    apart: dict[str, str] = dataclasses.field(default_factory=dict)  # another candidate -> the trial telling them apart
 
 
 @dataclasses.dataclass

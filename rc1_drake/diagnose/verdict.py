@@ -19,7 +19,16 @@ def verdict(accepted, left, rounds) -> tuple:
     ambiguous = rounds[-1].ambiguous if rounds else []
     if ambiguous:
         gains = {c.name: c.simulated["held_out_reduction"] for c in rounds[-1].candidates if c.name in ambiguous}
-        experiments = sorted({c.experiment for c in rounds[-1].candidates if c.name in ambiguous and c.experiment})
+        # each pair's trial once (a candidate's experiment names every pair it is in)
+        experiments = list(
+            dict.fromkeys(
+                text
+                for c in rounds[-1].candidates
+                if c.name in ambiguous
+                for o, text in c.apart.items()
+                if o in ambiguous
+            )
+        )
         done = f"accepted {', '.join(accepted)}; then " if accepted else ""
         return Verdict.AMBIGUOUS, (
             f"{done}{' or '.join(ambiguous)} explain the held-out trials alike (simulated held-out "

@@ -11,9 +11,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..config import Friction
+from ..config import Friction, Rc1Error
 from ..engine import default_engine
 from ..replay import Replayer
+from .records import encode, read_records
 
 _REPLAYERS: dict = {}  # per worker process: trial source -> Replayer (its Diagram and reference)
 
@@ -58,21 +59,20 @@ def code_version() -> str:
 
 
 class Checkpoint:
-    """Results of jobs on disk, by the job's content and this code's version: one file of pickled (key, result)
-    records, appended and flushed as each result arrives. A record cut short by an interruption is dropped."""
+    """Results of jobs on disk, by the job's content and this code's version: one file of records (sysid.records:
+    arrays and JSON, which load without running code), appended and flushed as each result arrives. A record cut short
+    by an interruption is dropped. A folder holding an older version's pickled checkpoint is refused."""
 
     def __init__(self, folder):
-        self.path = Path(folder) / f"results-{code_version()}.pkl"
+        folder = Path(folder)
+        for old in sorted(folder.glob("results-*.pkl")) if folder.is_dir() else []:
+            raise Rc1Error(
+                f"{old}: a checkpoint of an older rc1 (pickled results, which could run code as they load): delete it "
+                "and run again"
+            )
+        self.path = folder / f"results-{code_version()}.records"
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        self.results: dict = {}
-        if self.path.exists():
-            with open(self.path, "rb") as f:
-                while True:
-                    try:
-                        key, value = pickle.load(f)
-                    except Exception:  # noqa: BLE001 - the end of the file, or a record the interruption cut
-                        break
-                    self.results[key] = value
+        self.results: dict = read_records(self.path) if self.path.exists() else {}
         self.loaded = set(self.results)  # what an earlier, interrupted run left
         self.resumed = 0  # results of an earlier run taken by this one (not this run's own, asked for again)
 
@@ -85,7 +85,7 @@ class Checkpoint:
     def put(self, key: str, value) -> None:
         self.results[key] = value
         with open(self.path, "ab") as f:
-            pickle.dump((key, value), f, protocol=5)
+            f.write(encode(key, value))
 
     def take(self, key: str):
         self.resumed += key in self.loaded
@@ -96,7 +96,7 @@ class Checkpoint:
         """Delete this code's checkpoint in `folder` (the job finished: its results are in its output), and the folder
         if nothing else is in it, and then its parent if that is an empty `checkpoints` (the commands' default)."""
         folder = Path(folder)
-        (folder / f"results-{code_version()}.pkl").unlink(missing_ok=True)
+        (folder / f"results-{code_version()}.records").unlink(missing_ok=True)
         for empty in (folder, folder.parent) if folder.parent.name == "checkpoints" else (folder,):
             try:
                 empty.rmdir()
