@@ -30,6 +30,7 @@ from .diagnose import INPUT_NOISE_SAMPLES as DIAGNOSE_NOISE_SAMPLES
 from .diagnose import THRESHOLDS
 from .engine import ENGINES, engine_for, make_session
 from .identify import INPUT_NOISE_SAMPLES
+from .progress import Counter
 from .reproduce import PAPER_TRIALS, TIME_LIMIT_S
 from .scenarios import DEFAULT_SCENARIOS, ModelFile, load_model_file, load_scenario, model_to_yaml, validate
 from .sysid.evaluate import Checkpoint
@@ -728,13 +729,11 @@ def cmd_compare(args) -> int:
     effects = {**effects, **dict(args.effect)}
     validate(Scenario(effects=effects), where="command line")
 
-    def progress(done, total, trial_id):
-        print(f"\r  replayed {done}/{total} trials ({trial_id})", end="", file=sys.stderr, flush=True)
-
+    progress = Counter("replayed trials:")
     report = compare_campaign(
         campaign, friction, effects=effects or None, workers=args.workers, progress=progress, start=args.start_rates
     )
-    print(file=sys.stderr)
+    progress.close()
     print(f"Simulator error (paper Eq. 6) per trial, {campaign.path}:")
     print(report.table())
     print()
@@ -1040,9 +1039,7 @@ def cmd_reproduce(args) -> int:
     servo = dataclasses.replace(Servo(), **dict(args.servo))
     validate(Scenario(effects=effects, servo=servo, stop=Stop(time_limit_s=args.time_limit_s)), where="command line")
 
-    def progress(done, total, label):
-        print(f"\r  ran {done}/{total} trials ({label})   ", end="", file=sys.stderr, flush=True)
-
+    progress = Counter("ran trials:")
     result = reproduce(
         friction=friction,
         effects=effects,
@@ -1054,7 +1051,7 @@ def cmd_reproduce(args) -> int:
         time_limit_s=args.time_limit_s,
         progress=progress,
     )
-    print(file=sys.stderr)
+    progress.close()
     print(result.format())
     print(f"({sum(len(c.trials) for c in result.cases.values())} runs, {result.settings['wall_s']:.0f} s)")
     if args.json:

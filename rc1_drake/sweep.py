@@ -11,6 +11,7 @@ import hashlib
 import json
 import math
 import os
+import sys
 from concurrent.futures import as_completed
 from pathlib import Path
 
@@ -18,6 +19,7 @@ import numpy as np
 
 from .config import Failure, Friction, Gait, Numerics, Rc1Error, Scenario, Servo, Start, Stop
 from .metrics import summarize
+from .progress import Counter
 from .scenarios import validate
 
 PATH_PERIOD_S = 0.1
@@ -170,11 +172,14 @@ def run_sweep(jobs: list[SweepJob], results_path, *, executor, progress: bool = 
     results_path.parent.mkdir(parents=True, exist_ok=True)
     done = {row["key"]: row for row in read_rows(results_path)}
     todo = [job for job in jobs if job.key not in done]
-    bar = None
-    if progress:
+    bar = count = None
+    finished = len(jobs) - len(todo)
+    if progress and sys.stderr.isatty():
         from tqdm import tqdm
 
         bar = tqdm(total=len(jobs), initial=len(jobs) - len(todo), unit="run", desc="sweep", dynamic_ncols=True)
+    elif progress:  # a log: a line every few seconds
+        count = Counter("sweep: runs")
     with open(results_path, "a") as out:
         futures = {executor.submit(run_job, job): job for job in todo}
         for future in as_completed(futures):
@@ -195,6 +200,9 @@ def run_sweep(jobs: list[SweepJob], results_path, *, executor, progress: bool = 
             done[job.key] = row
             if bar:
                 bar.update(1)
+            elif count:
+                finished += 1
+                count(finished, len(jobs), job.label)
     if bar:
         bar.close()
     return [done[job.key] for job in jobs]
