@@ -41,6 +41,11 @@ class _Parser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: error: {message}\n")
 
 
+NAMED_MODEL = (
+    "; FILE:NAME takes scenario NAME of a file of named scenarios (e.g. scenarios/paper_findings.yaml:nominal)"
+)
+
+
 def _named_value(known, what: str, form: str):
     """An argparse type for FORM=VALUE with the name among `known` (what it names, for the one-line error)."""
 
@@ -155,7 +160,7 @@ def _add_run(sub) -> None:
         dest="model_file",
         type=Path,
         metavar="PATH",
-        help="a model file (friction and effects), e.g. from rc1 identify --out or rc1 diagnose",
+        help="a model file (friction and effects), e.g. from rc1 identify --out or rc1 diagnose" + NAMED_MODEL,
     )
     run.add_argument(
         "--effect",
@@ -248,7 +253,7 @@ def _add_compare(sub) -> None:
         dest="model_file",
         type=Path,
         metavar="PATH",
-        help="a model file (friction and effects), e.g. from rc1 identify --out or rc1 diagnose",
+        help="a model file (friction and effects), e.g. from rc1 identify --out or rc1 diagnose" + NAMED_MODEL,
     )
     cmp.add_argument(
         "--effect",
@@ -290,7 +295,7 @@ def _add_sweep(sub) -> None:
         "--model-file",
         type=Path,
         metavar="PATH",
-        help="a model file (friction and effects), e.g. from rc1 identify --out",
+        help="a model file (friction and effects), e.g. from rc1 identify --out" + NAMED_MODEL,
     )
     swp.add_argument(
         "--friction-spread",
@@ -347,7 +352,7 @@ def _add_identify(sub) -> None:
         type=Path,
         metavar="MODEL.yaml",
         help="a model file: starting coefficients (default: the paper's manual values; frozen ones "
-        "stay at them) and effects, which stay fixed",
+        "stay at them) and effects, which stay fixed" + NAMED_MODEL,
     )
     idn.add_argument(
         "--freeze",
@@ -397,7 +402,7 @@ def _add_diagnose(sub) -> None:
         "--model-file",
         type=Path,
         metavar="MODEL.yaml",
-        help="today's model (friction and effects; default: the paper's identified friction, no effect)",
+        help="today's model (friction and effects; default: the paper's identified friction, no effect)" + NAMED_MODEL,
     )
     dgn.add_argument(
         "--candidates",
@@ -479,7 +484,8 @@ def _add_reproduce(sub) -> None:
         "--model-file",
         type=Path,
         metavar="MODEL.yaml",
-        help="the model (friction and effects), e.g. from rc1 diagnose (default: the paper's identified friction)",
+        help="the model (friction and effects), e.g. from rc1 diagnose (default: the paper's identified friction)"
+        + NAMED_MODEL,
     )
     rep.add_argument("--friction", type=_friction_override, action="append", default=[], metavar="NAME=VALUE")
     rep.add_argument(
@@ -1036,7 +1042,8 @@ def cmd_reproduce(args) -> int:
 
     friction, effects = model_from_args(dict(args.friction), args.model_file)
     effects = {**effects, **dict(args.effect)}
-    servo = dataclasses.replace(Servo(), **dict(args.servo))
+    named = load_model_file(args.model_file).servo if args.model_file else None
+    servo = dataclasses.replace(named or Servo(), **dict(args.servo))
     validate(Scenario(effects=effects, servo=servo, stop=Stop(time_limit_s=args.time_limit_s)), where="command line")
 
     progress = Counter("ran trials:")

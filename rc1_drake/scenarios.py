@@ -39,19 +39,34 @@ class ModelFile:
 
     friction: Friction = dataclasses.field(default_factory=Friction)
     effects: dict[str, float] = dataclasses.field(default_factory=dict)
+    servo: Servo | None = None  # the working joints' servos, where the model names them (None: each command's own)
 
 
 def load_model_file(path) -> ModelFile:
-    """The model file at `path`, validated; Rc1Error names the file and the problem."""
+    """The model file at `path`, validated; Rc1Error names the file and the problem. `FILE:NAME` takes the model of
+    scenario NAME of a file of named scenarios (its friction, effects and servos); such a file without a name is
+    refused, naming its scenarios."""
     import yaml
 
-    path = Path(path)
+    path, name = _named(Path(path))
     if not path.is_file():
         raise Rc1Error(f"{path}: no such model file")
     try:
         top = yaml.safe_load(path.read_text()) or {}
     except yaml.YAMLError as e:
         raise Rc1Error(f"{path}: not valid YAML: {_one_line(e)}") from None
+    scenarios = isinstance(top, dict) and bool(top) and not set(top) & {f.name for f in dataclasses.fields(ModelFile)}
+    scenarios = scenarios and not set(top) <= set(FRICTION_NAMES) and all(isinstance(v, dict) for v in top.values())
+    if name is not None or scenarios:
+        if not scenarios:
+            raise Rc1Error(f"{path}: a model file, not a file of named scenarios: give it without ':{name}'")
+        if name is None:
+            raise Rc1Error(
+                f"{path}: a file of named scenarios ({', '.join(top)}), not a model file: name one, e.g. "
+                f"{path}:{next(iter(top))}"
+            )
+        scenario = load_scenario(name, filename=path)
+        return ModelFile(friction=scenario.friction, effects=dict(scenario.effects), servo=scenario.servo)
     flat = isinstance(top, dict) and bool(top) and set(top) <= set(FRICTION_NAMES)
     try:
         model = (
@@ -63,6 +78,14 @@ def load_model_file(path) -> ModelFile:
         raise Rc1Error(f"{path}: {_one_line(e) or type(e).__name__}") from None
     validate(Scenario(friction=model.friction, effects=model.effects), where=str(path))
     return model
+
+
+def _named(path: Path) -> tuple:
+    """(the file, the scenario's name or None) of `path`, FILE or FILE:NAME."""
+    file, colon, name = str(path).rpartition(":")
+    if colon and name and not path.is_file() and Path(file).is_file():
+        return Path(file), name
+    return path, None
 
 
 def model_to_yaml(friction: Friction, effects: dict[str, float] | None = None, *, comment: str = "") -> str:

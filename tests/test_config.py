@@ -54,3 +54,24 @@ def test_unknown_scenario_and_missing_file(tmp_path):
     with pytest.raises(Rc1Error, match="no such scenario file"):
         load_scenario("nominal", filename=tmp_path / "missing.yaml")
     assert DEFAULT_SCENARIOS.is_file()
+
+
+def test_a_model_is_taken_by_name_from_a_file_of_named_scenarios(tmp_path):
+    """--model-file FILE:NAME (issue 69): the scenario's friction, effects and servos; the file alone, or a name
+    it lacks, is one line naming its scenarios; a model file given a name is refused."""
+    from rc1_drake.scenarios import load_model_file
+
+    path = REPO_ROOT / "scenarios" / "paper_findings.yaml"
+    model = load_model_file(f"{path}:joint_2")
+    scenario = load_scenario("joint_2", filename=path)
+    assert model.friction == scenario.friction and model.effects == scenario.effects
+    assert model.servo == scenario.servo and model.servo.ki_Nm_per_rad_s == 0.0
+    with pytest.raises(Rc1Error, match=r"a file of named scenarios \(nominal, joint_2, .*\), not a model file: name"):
+        load_model_file(path)
+    with pytest.raises(Rc1Error, match="no scenario named 'nope' \\(known: nominal, joint_2"):
+        load_model_file(f"{path}:nope")
+    plain = tmp_path / "m.yaml"
+    plain.write_text("friction: {mu_lat: 2.0}\neffects: {}\n")
+    assert load_model_file(plain).friction.mu_lat == 2.0 and load_model_file(plain).servo is None
+    with pytest.raises(Rc1Error, match="a model file, not a file of named scenarios: give it without ':x'"):
+        load_model_file(f"{plain}:x")
