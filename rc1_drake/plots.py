@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import sys
+import textwrap
 
 import matplotlib
 
@@ -240,7 +241,8 @@ def candidates_figure(candidates):
         [100 * c.held_out_reduction for c in candidates],
         color=[colours.get(c.status, "tab:orange") for c in candidates],
     )
-    ax.set_yticks(y, [f"{c.name} ({c.status})" for c in candidates], fontsize=7)
+    labels = [textwrap.fill(f"{c.name} ({c.status})", 44) for c in candidates]  # a long status wraps, never cut
+    ax.set_yticks(y, labels, fontsize=7)
     ax.axvline(0, color="k", lw=0.5)
     ax.set_xlabel("held-out error reduction (%), linear leave-one-trial-out")
     ax.grid(True, axis="x", alpha=0.3)

@@ -90,3 +90,36 @@ def screenshot(html, png, size=(1280, 720)) -> np.ndarray:
         timeout=120,
     )
     return imread(png)[..., :3]
+
+
+OVERFLOW_SCRIPT = """<script>
+const width = document.documentElement.clientWidth, out = [];
+for (const e of document.body.querySelectorAll("*")) {
+  const box = e.getBoundingClientRect();
+  if (box.right > width + 1 || e.scrollWidth > e.clientWidth + 1) out.push(`${e.tagName}@${Math.round(box.right)}`);
+}
+document.body.setAttribute("data-overflow", JSON.stringify(out));
+</script>"""
+
+
+def overflowing(html, width: int = 1400) -> list:
+    """The elements of a page that headless Chromium, `width` px wide, lays out past the page's width or that
+    scroll sideways (tag@right edge): none, for a page that fits."""
+    import json
+    import re
+
+    chromium = shutil.which("chromium")
+    if chromium is None:
+        if os.environ.get("CI"):
+            pytest.fail("chromium is missing: scripts/setup.sh installs Debian's")
+        pytest.skip("no chromium here (scripts/setup.sh installs Debian's)")
+    probe = html.with_name(html.stem + "-overflow.html")
+    probe.write_text(html.read_text().replace("</body>", OVERFLOW_SCRIPT + "</body>"))
+    done = subprocess.run(
+        [chromium, "--headless", "--no-sandbox", "--disable-gpu", f"--window-size={width},1000",
+         "--virtual-time-budget=3000", "--dump-dom", probe.resolve().as_uri()],
+        check=True, capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+    found = re.search(r'data-overflow="([^"]*)"', done.stdout)
+    assert found, "the page's overflow probe did not run"
+    return json.loads(found.group(1).replace("&quot;", '"'))

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
-from conftest import screenshot
+from conftest import overflowing, screenshot
 
 from rc1_drake.cli import main
 from rc1_drake.config import Friction, Stop
@@ -81,6 +81,8 @@ def test_diagnose_ends_with_its_report_far_from_the_data_and_its_page_shows_it(f
     assert (np.abs(image[:300] - banner).max(axis=-1) < 0.02).sum() > 20_000  # the verdict, on top
     tab_blue = np.array([31, 119, 180]) / 255
     assert (np.abs(image - tab_blue).max(axis=-1) < 0.02).sum() > 2_000  # the figures, drawn
+    assert overflowing(page / "index.html", 1400) == []  # labels, tables and figures fit the page's width
+    assert f"<title>rc1 diagnose {far_campaign.name}: " in text  # the campaign's name, not its path
 
 
 def test_a_failure_after_the_fit_keeps_the_fit_says_where_and_resumes(far_campaign, tmp_path, capsys, monkeypatch):

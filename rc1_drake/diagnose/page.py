@@ -5,6 +5,7 @@ reproduces it. Figures are embedded as PNG data, so the page opens anywhere, off
 import base64
 import html
 import io
+from pathlib import Path
 
 from ..plots import candidates_figure, compare_figures, waterfall_figure
 
@@ -17,7 +18,7 @@ VERDICT_COLOURS = {
 STYLE = """body{font-family:sans-serif;margin:2em auto;max-width:1100px;color:#222}
 .verdict{color:#fff;padding:0.8em 1.2em;border-radius:6px;font-size:1.2em}
 .summary{font-size:1.05em;line-height:1.6}
-pre{background:#f5f5f5;padding:0.8em;overflow-x:auto;font-size:0.8em}
+pre{background:#f5f5f5;padding:0.8em;font-size:0.8em;white-space:pre-wrap;overflow-wrap:anywhere}
 img{max-width:100%;display:block;margin:0.5em 0}"""
 
 
@@ -60,7 +61,7 @@ def report_page(diagnosis, campaign, *, model_yaml: str, command: str) -> str:
         "<h2>The whole report</h2>",
         f"<pre>{html.escape(diagnosis.format())}</pre>",
     ]
-    title = html.escape(f"rc1 diagnose {diagnosis.campaign}: {diagnosis.verdict}")
+    title = html.escape(f"rc1 diagnose {Path(diagnosis.campaign).name}: {diagnosis.verdict}")
     head = f'<head><meta charset="utf-8"><title>{title}</title><style>{STYLE}</style></head>'
     body = f"<h1>{title}</h1>\n" + "\n".join(parts)
     return f'<!DOCTYPE html>\n<html lang="en">{head}<body>\n{body}\n</body></html>\n'

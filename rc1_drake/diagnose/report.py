@@ -177,7 +177,7 @@ class Diagnosis:
         ]
         lines = [
             f"verdict: {self.verdict}: {self.explanation}",
-            rate_text(self.verdict),
+            rate_text(self.verdict, trials=self.trials),
             f"added: {', '.join(added) + ' (95%)' if added else 'nothing'}",
         ]
         risen = []

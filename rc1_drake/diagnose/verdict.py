@@ -92,14 +92,29 @@ def verdict_rates(rows: list[dict]) -> dict:
     return out
 
 
-def rate_text(verdict: Verdict, rates: dict | None = None) -> str:
-    """One line: how often this verdict held on the paper's design (RATES_FILE), or that it is not measured."""
+def rate_text(verdict: Verdict, rates: dict | None = None, trials=None) -> str:
+    """One line: how often this verdict held on the paper's design (RATES_FILE), or that it is not measured; with
+    the campaign's `trials`, whether their design is the one the rate was measured on."""
     if rates is None:
         rates = json.loads(RATES_FILE.read_text()) if RATES_FILE.is_file() else {}
     row = rates.get("verdicts", {}).get(str(verdict))
     if not row or not row["campaigns"]:
         return f"measured rate of {verdict} on the paper's design: none yet (benchmarks/paper_rates.py)"
-    return (
+    text = (
         f"measured on the paper's design ({rates['design']}; {rates['measured']}): {verdict} held ({row['meaning']}) "
         f"on {row['held']} of {row['campaigns']} campaigns"
     )
+    mine = design_text(trials) if trials else None
+    if mine and not rates["design"].startswith(mine):
+        text += f"; this campaign's design is another ({mine}): a guide, not its own rate"
+    return text
+
+
+def design_text(trials) -> str:
+    """A campaign's design as the rates name one: 'N trials each of none, J7, ...', or 'N none, M J7, ...'."""
+    counts: dict[str, int] = {}
+    for t in trials:
+        counts[t.case] = counts.get(t.case, 0) + 1
+    if len(set(counts.values())) == 1:
+        return f"{next(iter(counts.values()))} trials each of {', '.join(counts)}"
+    return ", ".join(f"{n} {case}" for case, n in counts.items())
