@@ -1,6 +1,6 @@
 """Do the 95% intervals hold the truth on data another model made (issue 67, item 5)?
 
-    python benchmarks/coverage.py [--seeds 10-17] [--methods program,avs,diagnose] [--hidden none,wheel_toe]
+    python benchmarks/interval_coverage.py [--seeds 10-17] [--methods program,avs,diagnose] [--hidden none,wheel_toe]
                                   [--workers 2] [--out benchmarks/out/coverage] [--markdown] [--table-only]
 
 Every campaign has the paper's design (2 trials each of no failure, J7, J13 and J7 with synthesize.PAPER_DESIGN's
@@ -17,7 +17,7 @@ and diagnosed as `rc1 diagnose` does by default. A row keeps every coefficient's
 error and the sandwich's (noise alone), whether the report called it identifiable, and the truth. Scored: of the
 intervals a report gives (an identifiable coefficient, an accepted effect's coordinate), the share holding the
 truth, with the sandwich's alone beside it; mu_lat's error; the toe's interval. Seeds below REPORTED_FROM (CHOSE)
-are kept for choosing rules, the table reports the others. Rows stream to benchmarks/rows/coverage.jsonl (kept in
+are kept for choosing rules, the table reports the others. Rows stream to benchmarks/rows/interval_coverage.jsonl (kept in
 the repository): a rerun resumes, from a fresh clone too. --markdown writes the table into docs/identification.md.
 """
 
@@ -38,8 +38,12 @@ from rc1_drake.identify import identify
 from rc1_drake.measurements import load_campaign
 from rc1_drake.synthesize import PAPER_DESIGN, Case, Noise, Variation, synthesize_campaign
 
-PAGE, BLOCK, WRITER = REPO_ROOT / "docs" / "identification.md", "coverage-table", "benchmarks/coverage.py --markdown"
-ROWS = rows_file("coverage")
+PAGE, BLOCK, WRITER = (
+    REPO_ROOT / "docs" / "identification.md",
+    "coverage-table",
+    "benchmarks/interval_coverage.py --markdown",
+)
+ROWS = rows_file("interval_coverage")
 CHOSE = range(0, 10)  # seeds kept for choosing rules; the table reports seeds from 10 on
 METHODS = ("program", "avs", "diagnose")
 HIDDEN = ("none", "wheel_toe")
@@ -169,16 +173,21 @@ def holds(estimate: dict, truth: float, key: str = "se") -> bool | None:
 
 
 def intervals(rows: list) -> tuple:
-    """(reported intervals, of which hold the truth, of which the sandwich's alone would) over rows' estimates."""
-    given = held = noise_held = 0
+    """(reported intervals, of which hold the truth; the intervals the sandwich alone would have reported, before
+    issue 67: a coefficient fitted whose sandwich standard error is under 30% of it, and of which hold it)."""
+    given = held = before = before_held = 0
     for row in rows:
         for name, estimate in row["estimates"].items():
-            if not estimate["interval"] or name not in row["truth"]:
+            if name not in row["truth"]:
                 continue
-            given += 1
-            held += bool(holds(estimate, row["truth"][name]))
-            noise_held += bool(holds(estimate, row["truth"][name], "noise_se"))
-    return given, held, noise_held
+            if estimate["interval"]:
+                given += 1
+                held += bool(holds(estimate, row["truth"][name]))
+            noise = estimate.get("noise_se")
+            if noise is not None and name not in row.get("held", []) and noise < 0.3 * abs(estimate["value"]):
+                before += 1
+                before_held += bool(holds(estimate, row["truth"][name], "noise_se"))
+    return given, held, before, before_held
 
 
 def table(rows: list) -> str:
@@ -187,30 +196,31 @@ def table(rows: list) -> str:
     lines = [
         f"Measured by `python {WRITER}` over reported seeds {seeds[0] if seeds else '-'}-{seeds[-1] if seeds else '-'}"
         f" ({len(seeds)} truths, each with nothing and a {diagnosis.REFERENCE['wheel_toe'][1]:g} deg wheel toe hidden)."
-        " A report's 95% intervals (identifiable coefficients; a diagnosis's free friction and accepted effects) that"
-        " hold the truth; beside them, the sandwich's alone (every residual independent: the intervals before issue 67)"
-        "; mu_lat within 25% of the truth; the toe found with its interval holding:",
+        " The 95% intervals a report gives (its identifiable coefficients; a diagnosis's free friction and accepted"
+        " effects) and how many hold the truth; before them, those the sandwich alone gave (every residual"
+        " independent, identifiable under 30%: before issue 67); mu_lat within 25% of the truth; the toe found, and"
+        " its interval holding:",
         "",
-        "| method | hidden | campaigns | intervals given | hold the truth | sandwich alone | mu_lat within 25% "
+        "| method | hidden | campaigns | sandwich alone: given, hold | reported: given, hold | mu_lat within 25% "
         "| toe found, holds | median min |",
-        "|---|---|---|---|---|---|---|---|---|",
+        "|---|---|---|---|---|---|---|---|",
     ]
     for method in METHODS:
         for hidden in HIDDEN:
             mine = [r for r in reported if r["method"] == method and r["hidden"] == hidden]
             if not mine:
                 continue
-            given, held, noise_held = intervals(mine)
+            given, held, before, before_held = intervals(mine)
             close = sum(abs(r["estimates"]["mu_lat"]["value"] / r["truth"]["mu_lat"] - 1) <= 0.25 for r in mine)
             toe = [r["estimates"].get("wheel_toe_deg") for r in mine] if hidden == "wheel_toe" else []
             found = [e for e in toe if e is not None and e["interval"]]
             inside = sum(bool(holds(e, diagnosis.REFERENCE["wheel_toe"][1])) for e in found)
             toe_text = "-" if hidden == "none" else f"{len(found)} of {len(mine)}, {inside}"
-            noise_text = f"{noise_held}" if method != "diagnose" else "-"
+            before_text = f"{before}, {before_held}" if method != "diagnose" else "-"
             minutes = float(np.median([r["wall_s"] for r in mine])) / 60
             lines.append(
-                f"| {method} | {hidden} | {len(mine)} | {given} | {held} ({100 * held / max(given, 1):.0f}%) | "
-                f"{noise_text} | {close} of {len(mine)} | {toe_text} | {minutes:.1f} |"
+                f"| {method} | {hidden} | {len(mine)} | {before_text} | {given}, {held} | {close} of {len(mine)} | "
+                f"{toe_text} | {minutes:.1f} |"
             )
     return "\n".join(lines)
 
@@ -221,7 +231,7 @@ def main():
     parser.add_argument("--methods", default=",".join(METHODS))
     parser.add_argument("--hidden", default=",".join(HIDDEN))
     parser.add_argument("--workers", type=int, default=2)
-    parser.add_argument("--out", type=Path, default=REPO_ROOT / "benchmarks" / "out" / "coverage")
+    parser.add_argument("--out", type=Path, default=REPO_ROOT / "benchmarks" / "out" / "interval_coverage")
     parser.add_argument("--markdown", action="store_true")
     parser.add_argument("--table-only", action="store_true")
     args = parser.parse_args()
@@ -236,7 +246,7 @@ def main():
     for k, (seed, what, method) in enumerate([] if args.table_only else jobs, 1):
         row = measure(seed, what, method, args)
         append_row(ROWS, row)
-        given, held, _ = intervals([row])
+        given, held, _, _ = intervals([row])
         print(f"[{k}/{len(jobs)}] seed {seed} {what} {method}: {held} of {given} intervals hold, "
               f"{row['wall_s'] / 60:.1f} min", flush=True)  # fmt: skip
     text = table(load_rows(ROWS))
