@@ -1,7 +1,8 @@
 """Do the 95% intervals hold the truth on data another model made (issue 67, item 5)?
 
-    python benchmarks/interval_coverage.py [--seeds 10-17] [--methods program,avs,diagnose] [--hidden none,wheel_toe]
-                                           [--workers 2] [--out benchmarks/out/interval_coverage] [--markdown] [--table-only]
+    python benchmarks/interval_coverage.py [--seeds 10-17] [--methods program,avs,diagnose]
+                                           [--hidden none,wheel_toe] [--workers 2]
+                                           [--out benchmarks/out/interval_coverage] [--markdown] [--table-only]
 
 Every campaign has the paper's design (2 trials each of no failure, J7, J13 and J7 with synthesize.PAPER_DESIGN's
 bias, to the 3.18 m line) and is made by reference.py, whose form is not this model's: its working joints follow

@@ -1,0 +1,7 @@
+"""python -m rc1_drake.cli"""
+
+import sys
+
+from . import main
+
+sys.exit(main())
