@@ -9,7 +9,7 @@ from ..config import Friction
 from ..effects import coordinate_owner
 from ..sysid.stats import estimate_text, p_text
 from .coordinates import coordinate_bounds
-from .verdict import Verdict, rate_text
+from .verdict import Verdict, open_pairs, rate_text
 
 
 @dataclasses.dataclass
@@ -177,6 +177,7 @@ class Diagnosis:
         ]
         lines = [
             f"verdict: {self.verdict}: {self.explanation}",
+            *(f"  {a} or {b}: {text}" for a, b, text in open_pairs(self.rounds)),
             rate_text(self.verdict, trials=self.trials),
             f"added: {', '.join(added) + ' (95%)' if added else 'nothing'}",
         ]

@@ -19,21 +19,11 @@ def verdict(accepted, left, rounds) -> tuple:
     ambiguous = rounds[-1].ambiguous if rounds else []
     if ambiguous:
         gains = {c.name: c.simulated["held_out_reduction"] for c in rounds[-1].candidates if c.name in ambiguous}
-        # each pair's trial once (a candidate's experiment names every pair it is in)
-        experiments = list(
-            dict.fromkeys(
-                text
-                for c in rounds[-1].candidates
-                if c.name in ambiguous
-                for o, text in c.apart.items()
-                if o in ambiguous
-            )
-        )
         done = f"accepted {', '.join(accepted)}; then " if accepted else ""
         return Verdict.AMBIGUOUS, (
             f"{done}{' or '.join(ambiguous)} explain the held-out trials alike (simulated held-out "
-            f"gains {', '.join(f'{100 * g:.0f}%' for g in gains.values())}): these trials cannot "
-            f"tell them apart" + (f"; {'; '.join(experiments)}" if experiments else "")
+            f"gains {', '.join(f'{100 * g:.0f}%' for g in gains.values())}): these trials cannot tell them apart"
+            + ("; the trials that would are below" if open_pairs(rounds) else "")
         )
     outliers = ""
     if left.outliers:
@@ -68,6 +58,18 @@ def verdict(accepted, left, rounds) -> tuple:
     return Verdict.UNEXPLAINED, (
         f"the residual is not explained by any candidate (final positions {p_text(left.p)}){helped}{part}{outliers}"
     )
+
+
+def open_pairs(rounds) -> list[tuple[str, str, str]]:
+    """(a, b, the trial that tells them apart) for each pair of the last round's tied candidates that the probe study
+    could part, each pair once (a candidate carries every pair it is in: CandidateResult.apart)."""
+    ambiguous = rounds[-1].ambiguous if rounds else []
+    out: dict[tuple, str] = {}
+    for c in (c for c in rounds[-1].candidates if c.name in ambiguous) if ambiguous else ():
+        for other, text in c.apart.items():
+            if other in ambiguous:
+                out.setdefault(tuple(sorted((c.name, other))), text)
+    return [(a, b, text) for (a, b), text in out.items()]
 
 
 # How often each verdict was right on the paper's design, as benchmarks/paper_rates.py measured it (written there).
