@@ -151,3 +151,25 @@ def test_the_headline_gives_the_error_with_the_replays_own_miss_off_and_why_a_ca
     assert len(risen) == 1 and risen[0].startswith("none: its error rose 0.67% -> 0.90% while it fell 0.50% -> 0.30%")
     assert headline([before])[0].endswith("where the model stayed; with the replay's own miss taken off 2.34%")
     assert headline([before])[1] == []
+
+
+def test_a_coefficient_the_data_do_not_see_does_not_swing_the_jackknife_of_one_they_do():
+    """mu_lat seen, c_lat barely (its column 1000 times weaker), the rest not at all: the jackknife moves mu_lat alone,
+    so mu_lat's standard error is the larger of its sandwich's and of the jackknife of mu_lat alone, and c_lat, not
+    seen, keeps the sandwich's."""
+    rng = np.random.default_rng(7)
+    groups = np.repeat(np.arange(6), 30)
+    x = np.zeros((180, 5))
+    x[:, 1] = _smooth_design(rng, 6, 30)[:, 0]
+    x[:, 3] = 1e-3 * rng.normal(size=180)
+    theta = np.array([getattr(Friction(), n) for n in FRICTION_NAMES])
+    y = x @ theta + 0.05 * _correlated(rng, 6, 30, 0.9)
+    fitted = np.linalg.lstsq(x, y, rcond=None)[0]
+    at = Friction(**{n: float(v) if x[:, i].any() else getattr(Friction(), n) for i, (n, v) in
+                     enumerate(zip(FRICTION_NAMES, fitted, strict=True))})  # fmt: skip
+    u = uncertainty(LinearResiduals(x, y, groups), at, input_noise_samples=0)
+    r = x @ np.array([getattr(at, n) for n in FRICTION_NAMES]) - y
+    alone = trial_jackknife(x[:, [1]], r, groups)[0, 0]
+    assert u.identifiable[1] and not u.identifiable[3]
+    assert u.standard_errors[1] == pytest.approx(max(u.noise_standard_errors[1], math.sqrt(alone)), rel=1e-6)
+    assert u.standard_errors[3] == pytest.approx(u.noise_standard_errors[3], rel=1e-9)

@@ -263,7 +263,13 @@ def fit_screened(
             result.simulations += before.simulations
         if on_fit:
             on_fit(result)
-        spread = uncertainty(residuals, result.friction, parameters=parameters, input_noise_samples=input_noise_samples)
+        spread = uncertainty(
+            residuals,
+            result.friction,
+            parameters=parameters,
+            input_noise_samples=input_noise_samples,
+            fitted=[p.name for p in free if not p.frozen],
+        )
         return result, spread
 
     result, spread = fitted_from(start, fitted)

@@ -130,16 +130,20 @@ def uncertainty(
     effects=None,
     input_noise_samples: int = INPUT_NOISE_SAMPLES,
     trial_jackknife_too: bool = True,
+    fitted=None,
 ) -> Uncertainty:
     """Standard errors and correlations of the free parameters from the residual Jacobian at
     (`friction`, `effects`): the sandwich (J^T J)^-1 J^T S J (J^T J)^-1 of least squares with S the
     residual variance of each channel (channel_variances), plus, with `input_noise_samples`, the
     covariance that the angle noise in the replays' input causes (CampaignResiduals.input_noise: that
     many more replays per trial; INPUT_NOISE_SAMPLES by default, 0 leaves it out and understates the
-    intervals several times over, docs/identification.md); with `trial_jackknife_too`, the larger of that and the
-    linearized trial jackknife in every direction (trial_jackknife, larger_covariance), as the diagnosis's fit
-    takes it; a parameter is identifiable when its relative standard error is below `max_relative_error`. Costs one
-    residual evaluation per free parameter, plus one.
+    intervals several times over, docs/identification.md); with `trial_jackknife_too`, over the parameters the fit
+    moved (`fitted`, names; all free ones by default) that the noise lets the data see (the sandwich's relative
+    standard error under `max_relative_error`), the larger of that and the linearized trial jackknife in every
+    direction (trial_jackknife, larger_covariance), as the diagnosis's fit takes it. The jackknife's steps move only
+    those: a direction the data do not see would swing every leave-one-out step along it, and through the
+    correlations widen what the data do see. A parameter is identifiable when its relative standard error is below
+    `max_relative_error`. Costs one residual evaluation per free parameter, plus one.
 
     The Jacobian is taken in the parameters' own units (forward differences of 5% of the value, at least
     0.5% of the bounds' range for a coefficient, 2% of the range for an effect parameter), not in their
@@ -163,10 +167,12 @@ def uncertainty(
         spread = spread + residuals.input_noise(friction, effects, samples=input_noise_samples)
     cov, null = sandwich(jac, spread)
     noise_se = [math.inf if null[i] else float(math.sqrt(max(cov[i, i], 0.0))) for i in range(n)]
-    jackknife = trial_jackknife(jac, r0, getattr(residuals, "groups", None)) if trial_jackknife_too else None
-    if jackknife is not None:
-        cov = larger_covariance(cov, jackknife)
     values = [parameter_value(p.name, friction, effects) for p in free]
+    moved = set(fitted) if fitted is not None else {p.name for p in free}
+    seen = [i for i, p in enumerate(free) if p.name in moved and noise_se[i] < max_relative_error * abs(values[i])]
+    jackknife = trial_jackknife(jac[:, seen], r0, getattr(residuals, "groups", None)) if trial_jackknife_too else None
+    if seen and jackknife is not None:
+        cov[np.ix_(seen, seen)] = larger_covariance(cov[np.ix_(seen, seen)], jackknife)
     se = [math.inf if null[i] else float(math.sqrt(max(cov[i, i], 0.0))) for i in range(n)]
     d = np.sqrt(np.clip(np.diag(cov), 1e-300, None))
     corr = np.where(np.outer(d, d) > 0, cov / np.outer(d, d), 0.0)
