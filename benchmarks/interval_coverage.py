@@ -137,7 +137,9 @@ def measure(seed: int, hidden: str, method: str, args) -> dict:
     started = time.perf_counter()
     if method == "diagnose":
         result = diagnose(campaign, workers=args.workers, probe_study=False, start_rates="fit", checkpoint=checkpoint)
-        estimates, extra = _estimates_diagnose(result), {"verdict": str(result.verdict), "accepted": result.accepted}
+        estimates = _estimates_diagnose(result)
+        extra = {"verdict": str(result.verdict), "accepted": result.accepted,
+                 "final_friction": dataclasses.asdict(result.friction)}  # fmt: skip
     else:
         iterations = 3 if method == "avs" else 10
         result = identify(
@@ -193,6 +195,14 @@ def intervals(rows: list) -> tuple:
     return given, held, before, before_held
 
 
+def mu_lat_kept(row: dict) -> float | None:
+    """The mu_lat a run ended with: fitted or held (identify), the final model's (diagnose; rows before 2026-12-02
+    kept only its free coordinates)."""
+    if "final_friction" in row:
+        return row["final_friction"]["mu_lat"]
+    return row["estimates"].get("mu_lat", {}).get("value")
+
+
 def table(rows: list) -> str:
     reported = [r for r in rows if r["seed"] not in CHOSE]
     seeds = sorted({r["seed"] for r in reported})
@@ -214,16 +224,18 @@ def table(rows: list) -> str:
             if not mine:
                 continue
             given, held, before, before_held = intervals(mine)
-            close = sum(abs(r["estimates"]["mu_lat"]["value"] / r["truth"]["mu_lat"] - 1) <= 0.25 for r in mine)
+            kept = [(mu_lat_kept(r), r["truth"]["mu_lat"]) for r in mine]
+            kept = [(v, t) for v, t in kept if v is not None]
+            close = f"{sum(abs(v / t - 1) <= 0.25 for v, t in kept)} of {len(kept)}" if kept else "-"
             toe = [r["estimates"].get("wheel_toe_deg") for r in mine] if hidden == "wheel_toe" else []
             found = [e for e in toe if e is not None and e["interval"]]
             inside = sum(bool(holds(e, diagnosis.REFERENCE["wheel_toe"][1])) for e in found)
-            toe_text = "-" if hidden == "none" else f"{len(found)} of {len(mine)}, {inside}"
+            toe_text = "-" if hidden == "none" or method != "diagnose" else f"{len(found)} of {len(mine)}, {inside}"
             before_text = f"{before}, {before_held}" if method != "diagnose" else "-"
             timed = [r["wall_s"] for r in mine if not r.get("shared_cpu")] or [math.nan]  # alone on the machine
             minutes = float(np.median(timed)) / 60
             lines.append(
-                f"| {method} | {hidden} | {len(mine)} | {before_text} | {given}, {held} | {close} of {len(mine)} | "
+                f"| {method} | {hidden} | {len(mine)} | {before_text} | {given}, {held} | {close} | "
                 f"{toe_text} | {minutes:.1f} |"
             )
     return "\n".join(lines)
