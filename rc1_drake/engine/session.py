@@ -365,23 +365,13 @@ class _CompiledRun:
 
 # The start state's head rates (a replay's start from the data, start.py): d state / d x0 along these entries.
 START_RATES = {"start_head_vx_m_s": 16, "start_head_vy_m_s": 17, "start_head_yaw_rate_rad_s": 18}
-# ... and the rest of what a window of a trial starts from that no sensor fixes (identify/shooting.py): the head's
-# pose, and each joint's angle and rate (a failed joint's; a working joint's the servo overrides).
-START_STATE = {
-    **START_RATES,
-    "start_head_x_m": 0,
-    "start_head_y_m": 1,
-    "start_head_yaw_rad": 2,
-    **{f"start_q{j}_rad": 2 + j for j in range(1, 14)},
-    **{f"start_q{j}_rate_rad_s": 18 + j for j in range(1, 14)},
-}
 
 
 def sensitivity_parameters() -> tuple:
     """The names a run can be differentiated by: the friction coefficients, the fitted parameters and
     diagnosis coordinates of every differentiable effect (effects.Effect.differentiable), and the start's
-    state (START_STATE)."""
-    names = [*FRICTION_NAMES, *START_STATE]
+    head rates (START_RATES)."""
+    names = [*FRICTION_NAMES, *START_RATES]
     for effect in LIBRARY.values():
         if effect.differentiable:
             names += [p.key for p in (*effect.fitted(), *effect.coordinate_space()) if p.key not in names]
@@ -392,16 +382,16 @@ def sensitivity_directions(scenario: Scenario, names, size: int) -> tuple:
     """Per name, the change of the friction parameter vector (friction.py's layout) and of gravity's floor
     components per unit of it: central differences of the pure maps effects.model_setup and
     friction.friction_parameters (linear in all but the slope, whose error is ~1e-10); and the start state's
-    change (the seeds of the sensitivities: a unit entry of the start state for START_STATE). The tangent model
-    (tangent.py) carries them through the run."""
+    change (the seeds of the sensitivities: a unit head rate for START_RATES). The tangent model (tangent.py)
+    carries them through the run."""
     known = sensitivity_parameters()
     dparams, dgravity, seeds = np.zeros((len(names), size)), np.zeros((len(names), 2)), np.zeros((len(names), 32))
     base = model_setup(scenario.effects)
     for d, name in enumerate(names):
         if name not in known:
             raise ValueError(f"no sensitivity for '{name}' (known: {', '.join(known)})")
-        if name in START_STATE:
-            seeds[d, START_STATE[name]] = 1.0
+        if name in START_RATES:
+            seeds[d, START_RATES[name]] = 1.0
             continue
         h = 1e-5 * max(1.0, abs(_value(scenario, name)))
         for sign in (1.0, -1.0):
