@@ -142,10 +142,13 @@ def synthesize_campaign(
             f"synthesize: {', '.join(only)}: only the reference truth model has a floor seam and its own failed-joint "
             "stop"
         )
-    for key, least in (("reference_stop_Nm_per_rad", "> 0"), ("reference_stop_Nm_s_per_rad", ">= 0")):
-        value = (effects or {}).get(key)
-        if value is not None and not (value > 0 or (value == 0 and least == ">= 0")):
-            raise Rc1Error(f"synthesize: {key} must be {least}, got {value}")
+    if truth_model == "reference":  # its own forces checked where they are read, before any trial is made
+        from .reference import HiddenForces
+
+        try:
+            HiddenForces.from_effects(effects or {})
+        except ValueError as e:
+            raise Rc1Error(f"synthesize: {e}") from None
     if record_after_s < 0 or abs(record_after_s / sample_period_s - round(record_after_s / sample_period_s)) > 1e-9:
         raise Rc1Error(
             f"synthesize: record_after_s must be a non-negative multiple of the sample period, got {record_after_s}"

@@ -142,6 +142,13 @@ def test_the_reference_failed_joint_stop_is_a_pd_beyond_the_limit_of_its_truth_g
         HiddenForces.from_effects({"reference_stop_Nm_per_rad": 0.0})
     with pytest.raises(Rc1Error, match="reference_stop_Nm_per_rad: only the reference truth model"):
         synthesize_campaign(None, design=[Case([7], 1)], effects={"reference_stop_Nm_per_rad": 20.0})
+    with pytest.raises(
+        Rc1Error, match=r"^synthesize: reference: the failed joint's stop needs a gain > 0 .* got 20.0 N m/rad and -1.0"
+    ):
+        synthesize_campaign(
+            None, design=[Case([7], 1)], truth_model="reference", effects={"reference_stop_Nm_s_per_rad": -1.0,
+                                                                           "reference_stop_Nm_per_rad": 20.0}
+        )  # fmt: skip
     reach = {}
     for gain in (20.0, 500.0):
         scenario = Scenario(
