@@ -16,7 +16,7 @@ from ..sysid.objective import CampaignResiduals
 from ..sysid.optimize import bounded_step
 from ..sysid.parameters import DEFAULT_PARAMETERS, PAPER_MANUAL, parameter_value, with_values
 from ..sysid.residual import exact_jacobian_available
-from ..sysid.stats import Uncertainty, uncertainty
+from ..sysid.stats import MAX_RELATIVE_ERROR, Uncertainty, uncertainty
 from .equation_error import fit_equation_error, sees_whole_configuration
 
 
@@ -286,10 +286,10 @@ def fit_screened(
 
 def _seen_at(spread: Uncertainty, fitted) -> set:
     """The coefficients the fit held (`fitted`'s frozen ones among `spread`'s) whose relative standard error from
-    the noise alone, at the fit's end, is below the screen's 30%."""
+    the noise alone, at the fit's end, is below the screen's (MAX_RELATIVE_ERROR)."""
     held = {p.name for p in fitted if p.frozen}
     rows = zip(spread.names, spread.values, spread.noise_standard_errors, strict=True)
-    return {n for n, v, se in rows if n in held and math.isfinite(se) and se < 0.3 * abs(v)}
+    return {n for n, v, se in rows if n in held and math.isfinite(se) and se < MAX_RELATIVE_ERROR * abs(v)}
 
 
 def identify_equation_error(campaign, *, trials=None, start=PAPER_MANUAL, parameters=None, effects=None, seed=0):

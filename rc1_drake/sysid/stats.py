@@ -63,6 +63,9 @@ def larger_covariance(s, j) -> np.ndarray:
     return np.outer(scale, scale) * ((back * np.maximum(lam, 1.0)) @ back.T)
 
 
+MAX_RELATIVE_ERROR = 0.3  # a coefficient is identifiable when its standard error is under this share of it
+
+
 def trial_jackknife(jac, r, groups) -> np.ndarray | None:
     """The linearized leave-one-trial-out jackknife's covariance of a least-squares step from residuals r (rows
     grouped by trial, `groups`): each trial left out in turn, the step -pinv(J_rest) r_rest on the rest, and
@@ -126,7 +129,7 @@ def uncertainty(
     *,
     parameters=None,
     relative_step=0.05,
-    max_relative_error=0.3,
+    max_relative_error=MAX_RELATIVE_ERROR,
     effects=None,
     input_noise_samples: int = INPUT_NOISE_SAMPLES,
     trial_jackknife_too: bool = True,
@@ -170,8 +173,10 @@ def uncertainty(
     values = [parameter_value(p.name, friction, effects) for p in free]
     moved = set(fitted) if fitted is not None else {p.name for p in free}
     seen = [i for i, p in enumerate(free) if p.name in moved and noise_se[i] < max_relative_error * abs(values[i])]
-    jackknife = trial_jackknife(jac[:, seen], r0, getattr(residuals, "groups", None)) if trial_jackknife_too else None
-    if seen and jackknife is not None:
+    jackknife = (
+        trial_jackknife(jac[:, seen], r0, getattr(residuals, "groups", None)) if trial_jackknife_too and seen else None
+    )
+    if jackknife is not None:
         cov[np.ix_(seen, seen)] = larger_covariance(cov[np.ix_(seen, seen)], jackknife)
     se = [math.inf if null[i] else float(math.sqrt(max(cov[i, i], 0.0))) for i in range(n)]
     d = np.sqrt(np.clip(np.diag(cov), 1e-300, None))
