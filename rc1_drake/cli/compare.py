@@ -11,7 +11,7 @@ from ..config import (
 from ..progress import Counter
 from ..scenarios import validate
 from .options import (
-    NAMED_MODEL,
+    add_model_file,
     add_start_rates,
     effect_arg,
     friction_override,
@@ -33,13 +33,10 @@ def add_compare(sub) -> None:
         metavar="NAME=VALUE",
         help="friction coefficient for the model (repeatable)",
     )
-    cmp.add_argument(
-        "--model-file",
-        "--friction-file",
-        dest="model_file",
-        type=Path,
-        metavar="PATH",
-        help="a model file (friction and effects), e.g. from rc1 identify --out or rc1 diagnose" + NAMED_MODEL,
+    add_model_file(
+        cmp,
+        "a model file (friction and effects), e.g. from rc1 identify --out or rc1 diagnose",
+        aliases=("--friction-file",),
     )
     cmp.add_argument(
         "--effect",

@@ -19,8 +19,8 @@ from ..scenarios import ModelFile, load_model_file, model_to_yaml
 from ..sysid.evaluate import Checkpoint
 from .compare import write_compare_plots
 from .options import (
-    NAMED_MODEL,
     add_checkpoint,
+    add_model_file,
     add_outputs,
     add_start_rates,
     candidates_arg,
@@ -39,11 +39,10 @@ def add_diagnose(sub) -> None:
         "accept what holds on held-out trials, repeat",
     )
     dgn.add_argument("campaign", type=Path)
-    dgn.add_argument(
-        "--model-file",
-        type=Path,
+    add_model_file(
+        dgn,
+        "today's model (friction and effects; default: the paper's identified friction, no effect)",
         metavar="MODEL.yaml",
-        help="today's model (friction and effects; default: the paper's identified friction, no effect)" + NAMED_MODEL,
     )
     dgn.add_argument(
         "--candidates",

@@ -33,6 +33,11 @@ NAMED_MODEL = (
 )
 
 
+def add_model_file(parser, help: str, *, aliases=(), dest: str = "model_file", metavar: str = "PATH") -> None:
+    """`--model-file` of a command: a model file, or FILE:NAME for a scenario of a file of named scenarios."""
+    parser.add_argument("--model-file", *aliases, dest=dest, type=Path, metavar=metavar, help=help + NAMED_MODEL)
+
+
 def named_value(known, what: str, form: str):
     """An argparse type for FORM=VALUE with the name among `known` (what it names, for the one-line error)."""
 

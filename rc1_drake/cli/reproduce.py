@@ -16,7 +16,7 @@ from ..progress import Counter
 from ..reproduce import PAPER_TRIALS, TIME_LIMIT_S
 from ..scenarios import load_model_file, validate
 from .options import (
-    NAMED_MODEL,
+    add_model_file,
     effect_arg,
     float_arg,
     friction_override,
@@ -33,12 +33,10 @@ def add_reproduce(sub) -> None:
         "reproduce",
         help="the paper's section 4: no failure, joints 1-13 failed in turn, J7+bias; each finding reproduced or not",
     )
-    rep.add_argument(
-        "--model-file",
-        type=Path,
+    add_model_file(
+        rep,
+        "the model (friction and effects), e.g. from rc1 diagnose (default: the paper's identified friction)",
         metavar="MODEL.yaml",
-        help="the model (friction and effects), e.g. from rc1 diagnose (default: the paper's identified friction)"
-        + NAMED_MODEL,
     )
     rep.add_argument("--friction", type=friction_override, action="append", default=[], metavar="NAME=VALUE")
     rep.add_argument(

@@ -11,7 +11,7 @@ from ..config import (
 from ..engine import make_session
 from ..scenarios import DEFAULT_SCENARIOS
 from .options import (
-    NAMED_MODEL,
+    add_model_file,
     effect_arg,
     float_arg,
     friction_override,
@@ -49,13 +49,10 @@ def add_run(sub) -> None:
         metavar="NAME=VALUE",
         help=f"set a friction coefficient ({', '.join(FRICTION_NAMES)}); repeatable",
     )
-    run.add_argument(
-        "--model-file",
-        "--friction-file",
-        dest="model_file",
-        type=Path,
-        metavar="PATH",
-        help="a model file (friction and effects), e.g. from rc1 identify --out or rc1 diagnose" + NAMED_MODEL,
+    add_model_file(
+        run,
+        "a model file (friction and effects), e.g. from rc1 identify --out or rc1 diagnose",
+        aliases=("--friction-file",),
     )
     run.add_argument(
         "--effect",

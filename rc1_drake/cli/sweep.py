@@ -12,7 +12,7 @@ from ..config import (
 )
 from ..scenarios import validate
 from .options import (
-    NAMED_MODEL,
+    add_model_file,
     float_arg,
     friction_override,
     joint_list_arg,
@@ -44,12 +44,7 @@ def add_sweep(sub) -> None:
     swp.add_argument("--double", action="store_true", help="every pair of the joints instead of one at a time")
     swp.add_argument("--no-nominal", action="store_true", help="leave out the no-failure case")
     swp.add_argument("--friction", type=friction_override, action="append", default=[], metavar="NAME=VALUE")
-    swp.add_argument(
-        "--model-file",
-        type=Path,
-        metavar="PATH",
-        help="a model file (friction and effects), e.g. from rc1 identify --out" + NAMED_MODEL,
-    )
+    add_model_file(swp, "a model file (friction and effects), e.g. from rc1 identify --out")
     swp.add_argument(
         "--friction-spread",
         type=float_arg,
