@@ -36,7 +36,7 @@ from rc1_drake.diagnose.linearize import (
     trial_weights,
     with_replay_error,
 )
-from rc1_drake.diagnose.loop import far_friction, needs_friction_search
+from rc1_drake.diagnose.loop import far_friction, needs_friction_search, worse_without_failures
 from rc1_drake.diagnose.replays import evaluate
 from rc1_drake.diagnose.report import CandidateResult, HeldOutScore, Round
 from rc1_drake.diagnose.significance import Misfit, final_misfit, misfit, subspace_cosine
@@ -955,3 +955,22 @@ def test_an_ambiguous_verdict_is_one_sentence_with_the_trial_for_each_pair_once_
         ("a", "c", texts[("a", "c")]),
         ("b", "c", texts[("b", "c")]),
     ]
+
+
+def test_a_friction_search_that_fits_the_trials_without_a_failed_joint_worse_is_not_kept():
+    """worse_without_failures: the searched friction moves the no-failure trials' residuals up by 3 (12 rows each,
+    -2 log likelihood 0 -> 2 x 108) and the failed-joint trials' down: not kept, whatever the failed trials gained.
+    Where the no-failure trials fit it better, or no trial is free of a failed joint, it does not judge; a rise within
+    2 per moved coordinate (AIC) is let through."""
+    zero = {"a": [np.zeros(12)] * 4, "b": [np.zeros(12)] * 4}
+    start = _linearization(zero, [np.zeros(12), np.full(12, 5.0)] * 2)
+    worse = _linearization(zero, [np.full(12, 3.0), np.zeros(12)] * 2)
+    before, after = worse_without_failures(start, worse, [], 2)
+    assert (before, after) == pytest.approx((0.0, 2 * 12 * 9.0))
+    assert worse_without_failures(worse, start, [], 2) is None
+    slightly = _linearization(zero, [np.full(12, 0.2), np.zeros(12)] * 2)  # 2 x 12 x 0.04 = 0.96 < 2 x 1
+    assert worse_without_failures(start, slightly, [], 1) is None
+    assert worse_without_failures(start, slightly, [], 0) is not None
+    for lin in (start, worse):  # every trial with a failed joint
+        lin.trials = [dataclasses.replace(t, failed_joints=[7]) for t in lin.trials]
+    assert worse_without_failures(start, worse, [], 2) is None

@@ -96,12 +96,16 @@ class Linearization:
     def weighted_sum_of_squares(self, residuals: list[np.ndarray]) -> float:
         return float(sum(w * w * float(r @ r) for w, r in zip(self.weights, residuals, strict=True)))
 
-    def neg2_log_likelihood(self, residuals: list[np.ndarray]) -> float:
+    def neg2_log_likelihood(self, residuals: list[np.ndarray], trials=None) -> float:
         """-2 log of the residuals' likelihood (Gaussian, up to a constant), each trial's rows of variance 1 / w^2
         (its weight): the weighted sum of squares plus each trial's rows times log(1 / w^2). Two models whose input
-        noise differs, and so their weights, compare on this: a model that calls a trial noisy pays for it."""
-        spread = sum(len(r) * math.log(w) for w, r in zip(self.weights, residuals, strict=True))
-        return self.weighted_sum_of_squares(residuals) - 2.0 * float(spread)
+        noise differs, and so their weights, compare on this: a model that calls a trial noisy pays for it.
+        `trials`: the indices of the trials to count (all by default)."""
+        w, r = self.weights, residuals
+        if len(r) != len(w):
+            raise ValueError(f"{len(r)} trials' residuals for {len(w)} trials' weights")
+        keep = range(len(r)) if trials is None else trials
+        return float(sum(w[k] ** 2 * float(r[k] @ r[k]) - 2.0 * len(r[k]) * math.log(w[k]) for k in keep))
 
     def coordinate(self, name) -> Parameter:
         return next(c for c in self.coordinates if c.name == name)
