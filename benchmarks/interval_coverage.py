@@ -48,9 +48,11 @@ PAGE, BLOCK, WRITER = (
 ROWS = rows_file("interval_coverage")
 CHOSE = range(0, 10)  # seeds kept for choosing rules; the table reports seeds from 10 on
 METHODS = ("program", "avs", "diagnose")
-# The diagnosis's rows since its friction search was judged on the trials with no failed joint
-# (diagnose.loop.worse_without_failures); older diagnose rows are tabled apart as "diagnose, before".
-DIAGNOSE_RULE = "2026-12-02"
+# Rows made before this version are tabled apart as "<method>, before": identify's intervals without the jackknife
+# over failed joints (sysid.stats.uncertainty), the diagnosis without its friction search judged on the trials with
+# no failed joint (diagnose.loop.worse_without_failures).
+VERSION = "2026-12-02"
+LAW = "+failed-joint-law"  # a diagnosis with the failed joints' law fitted as nuisance (diagnose's failed_joint_law)
 HIDDEN = ("none", "wheel_toe")
 J7_BIAS_DEG = next(c.bias_deg for c in PAPER_DESIGN if c.bias_deg)
 DESIGN = [Case([], 2), Case([7], 2), Case([13], 2), Case([7], 2, bias_deg=J7_BIAS_DEG)]
@@ -137,11 +139,13 @@ def _freed(result) -> set:
 def measure(seed: int, hidden: str, method: str, args) -> dict:
     campaign, truth = campaign_of(seed, hidden, args.out)
     checkpoint = args.out / "checkpoints" / f"{hidden}-{seed}-{method}"
+    law = LAW if args.failed_joint_law else ""
     started = time.perf_counter()
     if method == "diagnose":
-        result = diagnose(campaign, workers=args.workers, probe_study=False, start_rates="fit", checkpoint=checkpoint)
+        result = diagnose(campaign, workers=args.workers, probe_study=False, start_rates="fit", checkpoint=checkpoint,
+                          failed_joint_law=args.failed_joint_law)  # fmt: skip
         estimates = _estimates_diagnose(result)
-        extra = {"verdict": str(result.verdict), "accepted": result.accepted, "rule": DIAGNOSE_RULE,
+        extra = {"verdict": str(result.verdict), "accepted": result.accepted, "version": VERSION + law,
                  "final_friction": dataclasses.asdict(result.friction),
                  "friction_search": result.friction_search}  # fmt: skip
     else:
@@ -151,7 +155,8 @@ def measure(seed: int, hidden: str, method: str, args) -> dict:
             checkpoint=checkpoint,
         )  # fmt: skip
         estimates = _estimates_identify(result)
-        extra = {"residual_rms": result.uncertainty.residual_rms, "held": getattr(result.result, "held", [])}
+        extra = {"residual_rms": result.uncertainty.residual_rms, "held": getattr(result.result, "held", []),
+                 "version": VERSION}  # fmt: skip
     truths = dataclasses.asdict(truth.friction) | {
         k: v for k, v in diagnosis.hidden_effects(None if hidden == "none" else hidden, 1.0).items()
     }
@@ -208,9 +213,15 @@ def mu_lat_kept(row: dict) -> float | None:
 
 
 def method_of(row: dict) -> str:
-    """The row's method; a diagnosis made before DIAGNOSE_RULE is "diagnose, before"."""
-    old = row["method"] == "diagnose" and row.get("rule") != DIAGNOSE_RULE
-    return "diagnose, before" if old else row["method"]
+    """The row's method, and ", before" for a row made before VERSION, ", failed-joint law" for a diagnosis with
+    the failed joints' law fitted (rows of the day's first runs name their version "rule")."""
+    version = row.get("version", row.get("rule"))
+    if version == VERSION + LAW:
+        return row["method"] + ", failed-joint law"
+    return row["method"] if version == VERSION else row["method"] + ", before"
+
+
+TABLED = [m + suffix for m in METHODS for suffix in ("", ", failed-joint law", ", before")]
 
 
 def table(rows: list) -> str:
@@ -228,7 +239,7 @@ def table(rows: list) -> str:
         "| toe found, holds | median min |",
         "|---|---|---|---|---|---|---|---|",
     ]
-    for method in (*METHODS, "diagnose, before"):
+    for method in TABLED:
         for hidden in HIDDEN:
             mine = [r for r in reported if method_of(r) == method and r["hidden"] == hidden]
             if not mine:
@@ -264,6 +275,7 @@ def main():
     parser.add_argument("--out", type=Path, default=REPO_ROOT / "benchmarks" / "out" / "interval_coverage")
     parser.add_argument("--markdown", action="store_true")
     parser.add_argument("--table-only", action="store_true")
+    parser.add_argument("--failed-joint-law", action="store_true", help="diagnose with the failed joints' law fitted")
     args = parser.parse_args()
     methods, hidden = args.methods.split(","), args.hidden.split(",")
     if unknown := sorted(set(methods) - set(METHODS)) + sorted(set(hidden) - set(HIDDEN)):
@@ -272,7 +284,9 @@ def main():
         check_block(PAGE, BLOCK, WRITER)
     args.out.mkdir(parents=True, exist_ok=True)
     done = {(r["seed"], r["hidden"], method_of(r)) for r in load_rows(ROWS)}
-    jobs = [(s, h, m) for s in parse_seeds(args.seeds) for h in hidden for m in methods if (s, h, m) not in done]
+    label = {"diagnose": "diagnose, failed-joint law"} if args.failed_joint_law else {}  # identify ignores it
+    jobs = [(s, h, m) for s in parse_seeds(args.seeds) for h in hidden for m in methods
+            if (s, h, label.get(m, m)) not in done]  # fmt: skip
     for k, (seed, what, method) in enumerate([] if args.table_only else jobs, 1):
         row = measure(seed, what, method, args)
         append_row(ROWS, row)

@@ -31,6 +31,9 @@ REPLAY_ERROR_MODES = ("paired", "full", "start")
 FAR_LABEL = "today's model, friction searched (none identified at the start)"
 REFINED_CANDIDATES = 3  # the best candidates by the linear ranking, refined by a secant step before the checks
 CHECKED_CANDIDATES = 2  # of those, the best significant ones checked by simulation on held-out trials
+# A powered-off servo's law, unknown on every real robot: with `failed_joint_law`, these effects' coordinates are
+# nuisance in every fit of a campaign with failed joints (issue 67 item 3), not candidates.
+FAILED_JOINT_LAW = ("joint_coulomb_friction", "compliant_stop")
 
 
 def diagnose(
@@ -52,6 +55,7 @@ def diagnose(
     checkpoint=None,
     on_round=None,
     replay_error="paired",
+    failed_joint_law=False,
 ) -> Diagnosis:
     """The loop (the package's docstring) on `campaign` (its `trials`, all by default), from the model (`friction`,
     `effects`); `candidates` are effect names or groups (effects.candidate_names; by default the physical effects,
@@ -65,7 +69,8 @@ def diagnose(
     polished one moved from the accepted model's by the paired difference of its first draws ("paired":
     linearize.PAIRED_DRAWS of six, docs/diagnosis.md); measured again in full there too ("full"); or the start's
     kept ("start"). The others are judged against the default campaign by campaign (benchmarks/paper_rates.py
-    --variant)."""
+    --variant). `failed_joint_law`: the failed joints' dry torque and compliant stop (FAILED_JOINT_LAW) fitted in
+    every fit as nuisance, not offered as candidates."""
     started = time.perf_counter()
     if start_rates not in START_MODES:
         raise ValueError(f"start_rates must be one of {START_MODES}, got {start_rates!r}")
@@ -73,6 +78,8 @@ def diagnose(
         raise ValueError(f"replay_error must be one of {REPLAY_ERROR_MODES}, got {replay_error!r}")
     friction, effects, chosen = friction or Friction(), dict(effects or {}), campaign.chosen(trials)
     replayed, unseen = _candidates(chosen, effects, candidates)
+    law = failed_joint_law_effects(chosen, effects) if failed_joint_law else []
+    replayed = [n for n in replayed if n not in law]
     with make_executor(workers=workers or min(os.cpu_count() or 1, len(chosen)), scheduler=scheduler) as executor:
         evaluator = Evaluator(executor, progress, Checkpoint(checkpoint) if checkpoint else None)
         fit_starts = start_rates == "fit"
@@ -80,13 +87,13 @@ def diagnose(
             chosen,
             friction,
             effects,
-            replayed,
+            replayed + law,
             evaluator,
             input_noise_samples=input_noise_samples,
             held=held,
             starts=fit_starts,
         )
-        search = _Search.begin(lin, evaluator, chosen, replayed, held, input_noise_samples, thresholds)
+        search = _Search.begin(lin, evaluator, chosen, replayed, held, input_noise_samples, thresholds, law)
         search.replay_error = replay_error
         search.stop_reason = f"{max_rounds} rounds"
         for index in range(max_rounds):
@@ -119,6 +126,12 @@ def _candidates(trials, effects, candidates) -> tuple:
     ]
     in_model = [e.name for e in active(effects)]
     return [n for n in names if LIBRARY[n].seen_in_replay and n not in in_model], unseen
+
+
+def failed_joint_law_effects(trials, effects) -> list[str]:
+    """FAILED_JOINT_LAW's effects not already in the model, where some trial has a failed joint."""
+    in_model = [e.name for e in active(effects)]
+    return [n for n in FAILED_JOINT_LAW if n not in in_model] if any(t.failed_joints for t in trials) else []
 
 
 def needs_friction_search(lin: Linearization, names: list[str], free: list[str], thresholds: Thresholds) -> bool:
@@ -245,10 +258,11 @@ class _Search:
     scatter: Scatter | None = None  # the failed joint's scatter columns, where a misfit takes it as noise
 
     @classmethod
-    def begin(cls, lin, evaluator, trials, replayed, held, samples, thresholds) -> "_Search":
+    def begin(cls, lin, evaluator, trials, replayed, held, samples, thresholds, law=()) -> "_Search":
         """The search at the start: the friction these data identify (where none is at the start and its replays
         miss by more than the noise, judged again where a search of the friction goes, if the friction explains that
-        miss better than a candidate does: needs_friction_search, far_friction), the trials' starts fitted with it."""
+        miss better than a candidate does: needs_friction_search, far_friction), the trials' starts fitted with it.
+        `law`: effects whose coordinates are in every fit from the first round's refit on (FAILED_JOINT_LAW)."""
         nuisance = [c.name for c in lin.coordinates if c.owner == START]
         names = [n for n in FRICTION_NAMES if n not in held]
         free = screen_friction(lin, names, nuisance=nuisance)
@@ -275,7 +289,7 @@ class _Search:
             free = screen_friction(lin, names, nuisance=nuisance)
             lin = starts_fitted(lin, nuisance, free, evaluator)
             waterfall.append(waterfall_step(FAR_LABEL, unrefitted(lin, FAR_LABEL), trials))
-        model_names = nuisance + list(free)
+        model_names = nuisance + list(free) + [c.name for c in lin.coordinates if c.owner in law]
         search = cls(lin, evaluator, trials, replayed, nuisance, free, model_names, samples, thresholds, waterfall)
         search.friction_search = note
         search.scatter = _scatter(lin, evaluator, thresholds)  # at the model the rounds start from

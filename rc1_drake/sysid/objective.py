@@ -26,7 +26,7 @@ class CampaignResiduals:
         parts = self.evaluator.map(replay_residual, jobs, "residuals")
         self.simulations += len(self.trials)
         self.channels = np.concatenate([residual_channels(p) for p in parts])
-        self.groups = np.concatenate([np.full(len(p), k) for k, p in enumerate(parts)])
+        self._group(parts)
         return np.concatenate(parts)
 
     def with_jacobian(self, friction: Friction, effects, names) -> tuple:
@@ -36,8 +36,18 @@ class CampaignResiduals:
         parts = self.evaluator.map(replay_residual_and_jacobian, jobs, "residuals and their Jacobian")
         self.simulations += len(self.trials)
         self.channels = np.concatenate([residual_channels(r) for r, _ in parts])
-        self.groups = np.concatenate([np.full(len(r), k) for k, (r, _) in enumerate(parts)])
+        self._group([r for r, _ in parts])
         return np.concatenate([r for r, _ in parts]), np.vstack([j for _, j in parts])
+
+    def _group(self, parts) -> None:
+        """Each stacked row's trial (`groups`) and its trial's failed joints (`failure_groups`: one label per set of
+        failed joints, the bias aside), for the jackknives of stats.uncertainty."""
+        failed = {tuple(t.failed_joints) for t in self.trials}
+        label = {f: k for k, f in enumerate(sorted(failed))}
+        self.groups = np.concatenate([np.full(len(p), k) for k, p in enumerate(parts)])
+        self.failure_groups = np.concatenate(
+            [np.full(len(p), label[tuple(t.failed_joints)]) for t, p in zip(self.trials, parts, strict=True)]
+        )
 
     def input_noise(
         self, friction: Friction, effects=None, *, samples: int = INPUT_NOISE_SAMPLES, seed: int = 0

@@ -143,7 +143,9 @@ def uncertainty(
     intervals several times over, docs/identification.md); with `trial_jackknife_too`, over the parameters the fit
     moved (`fitted`, names; all free ones by default) that the noise lets the data see (the sandwich's relative
     standard error under `max_relative_error`), the larger of that and the linearized trial jackknife in every
-    direction (trial_jackknife, larger_covariance), as the diagnosis's fit takes it. The jackknife's steps move only
+    direction (trial_jackknife, larger_covariance), as the diagnosis's fit takes it, and of the jackknife over the
+    sets of failed joints (`failure_groups`: no failure, J7, J13): trials that share a failed joint share its
+    mis-modelled law, a bias the trial jackknife cannot see (findings (31)). The jackknife's steps move only
     those: a direction the data do not see would swing every leave-one-out step along it, and through the
     correlations widen what the data do see. A parameter is identifiable when its relative standard error is below
     `max_relative_error`. Costs one residual evaluation per free parameter, plus one.
@@ -173,11 +175,10 @@ def uncertainty(
     values = [parameter_value(p.name, friction, effects) for p in free]
     moved = set(fitted) if fitted is not None else {p.name for p in free}
     seen = [i for i, p in enumerate(free) if p.name in moved and noise_se[i] < max_relative_error * abs(values[i])]
-    jackknife = (
-        trial_jackknife(jac[:, seen], r0, getattr(residuals, "groups", None)) if trial_jackknife_too and seen else None
-    )
-    if jackknife is not None:
-        cov[np.ix_(seen, seen)] = larger_covariance(cov[np.ix_(seen, seen)], jackknife)
+    for by in ("groups", "failure_groups") if trial_jackknife_too and seen else ():
+        jackknife = trial_jackknife(jac[:, seen], r0, getattr(residuals, by, None))
+        if jackknife is not None:
+            cov[np.ix_(seen, seen)] = larger_covariance(cov[np.ix_(seen, seen)], jackknife)
     se = [math.inf if null[i] else float(math.sqrt(max(cov[i, i], 0.0))) for i in range(n)]
     d = np.sqrt(np.clip(np.diag(cov), 1e-300, None))
     corr = np.where(np.outer(d, d) > 0, cov / np.outer(d, d), 0.0)
