@@ -36,7 +36,13 @@ from rc1_drake.diagnose.linearize import (
     trial_weights,
     with_replay_error,
 )
-from rc1_drake.diagnose.loop import far_friction, needs_friction_search, worse_without_failures
+from rc1_drake.diagnose.loop import (
+    FAILED_JOINT_LAW,
+    failed_joint_law_effects,
+    far_friction,
+    needs_friction_search,
+    worse_without_failures,
+)
 from rc1_drake.diagnose.replays import evaluate
 from rc1_drake.diagnose.report import CandidateResult, HeldOutScore, Round
 from rc1_drake.diagnose.significance import Misfit, final_misfit, misfit, subspace_cosine
@@ -974,3 +980,22 @@ def test_a_friction_search_that_fits_the_trials_without_a_failed_joint_worse_is_
     for lin in (start, worse):  # every trial with a failed joint
         lin.trials = [dataclasses.replace(t, failed_joints=[7]) for t in lin.trials]
     assert worse_without_failures(start, worse, [], 2) is None
+
+
+def test_the_failed_joints_law_is_a_nuisance_only_where_a_joint_failed_and_never_twice():
+    none, j7 = (dataclasses.replace(_FAKE_TRIAL, failed_joints=f) for f in ([], [7]))
+    assert failed_joint_law_effects([none, j7], {}) == list(FAILED_JOINT_LAW)
+    assert failed_joint_law_effects([none], {}) == []
+    assert failed_joint_law_effects([j7], {"joint_coulomb_Nm": 0.2}) == ["compliant_stop"]
+
+
+@pytest.mark.slow
+def test_a_failed_joints_dry_torque_fitted_as_nuisance_is_no_missing_effect_and_its_interval_holds(tmp_path):
+    """A 0.3 N m dry torque in the failed joint, the candidates without it: with the failed joints' law fitted in
+    every fit (failed_joint_law), nothing is missing, and the fitted torque's 95% interval holds the truth."""
+    campaign = _campaign(tmp_path, {"joint_coulomb_Nm": 0.3}, seed=12)
+    result = _diagnose(campaign, candidates=["wheel_toe", "head_drag"], failed_joint_law=True)
+    assert result.accepted == [] and result.verdict == "no_missing_effect", result.rounds[0].table()
+    assert {c.name for r in result.rounds for c in r.candidates} <= {"wheel_toe", "head_drag"}
+    value, se = result.final_coordinates["joint_coulomb_Nm"]
+    assert abs(value - 0.3) <= Z95 * se, (value, se)

@@ -197,20 +197,22 @@ POLISH_STEPS = 3  # Gauss-Newton steps on an accepted model, while simulation co
 POLISH_TOLERANCE = 0.5  # ... and while the accepted effect's step exceeds this many standard errors
 
 
-def polish(lin: Linearization, names: list[str], effect: str, evaluator, samples: int, paired=False) -> tuple:
+def polish(lin: Linearization, names: list[str], effect, evaluator, samples: int, paired=False) -> tuple:
     """The accepted model moved by Gauss-Newton steps over `names` (secant columns, each step within the trust
     region, the replay's own error measured again at each point with `samples` draws, or `paired` ones) while the
     replays there lower the weighted sum of squares and `effect`'s own step exceeds POLISH_TOLERANCE standard errors.
     Acceptance was decided at the bounded refined fit; this only estimates. Measured (3 s `none,J7x2`, seed
     0): a failed joint's 0.6 N m dry friction accepted at 0.40, two trust steps from 0, outside its interval;
     the replays with their own miss taken off fit best at 0.6, but with the miss measured at 0.4 at 0.45-0.48,
-    because that miss moves with the friction. Returns the model and the number of steps taken."""
+    because that miss moves with the friction. `effect`: a name, or a tuple of names whose steps are watched
+    together. Returns the model and the number of steps taken."""
+    owners = (effect,) if isinstance(effect, str) else tuple(effect)
     for k in range(POLISH_STEPS):
         step = fit(lin, names)
-        own = [i for i, n in enumerate(step.names) if lin.coordinate(n).owner == effect]
+        own = [i for i, n in enumerate(step.names) if lin.coordinate(n).owner in owners]
         if all(abs(step.steps[i]) <= POLISH_TOLERANCE * step.standard_errors[i] for i in own):
             break
-        what = f"polishing {effect} ({k + 1})"
+        what = f"polishing {' and '.join(owners)} ({k + 1})"
         there = moved(lin, names, step.values, evaluator, what=what, samples=samples, paired=paired)
         if lin.weighted_sum_of_squares(there.r0) >= lin.weighted_sum_of_squares(lin.r0):  # both with lin's weights
             break

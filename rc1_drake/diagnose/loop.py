@@ -267,6 +267,9 @@ class _Search:
         names = [n for n in FRICTION_NAMES if n not in held]
         free = screen_friction(lin, names, nuisance=nuisance)
         lin = starts_fitted(lin, nuisance, free, evaluator)
+        law_names = [c.name for c in lin.coordinates if c.owner in law]
+        if law_names:  # fitted before the friction is judged: else the wheels take up what the failed joints miss
+            lin = polish(lin, nuisance + list(free) + law_names, tuple(law), evaluator, samples, paired=True)[0]
         start = unrefitted(lin, "start (no refit)")
         waterfall = [
             {
@@ -284,12 +287,12 @@ class _Search:
         if needs_friction_search(lin, names, free, thresholds):
             found, note = far_friction(lin, names, nuisance, replayed, evaluator, thresholds, samples)
         if found is not None:  # linearized again where the search went, and judged there
-            lin = linearize(lin.trials, found, lin.effects, replayed, evaluator, input_noise_samples=samples,
-                            held=held, starts=bool(nuisance))  # fmt: skip
+            lin = linearize(lin.trials, found, lin.effects, replayed + list(law), evaluator,
+                            input_noise_samples=samples, held=held, starts=bool(nuisance))  # fmt: skip
             free = screen_friction(lin, names, nuisance=nuisance)
             lin = starts_fitted(lin, nuisance, free, evaluator)
             waterfall.append(waterfall_step(FAR_LABEL, unrefitted(lin, FAR_LABEL), trials))
-        model_names = nuisance + list(free) + [c.name for c in lin.coordinates if c.owner in law]
+        model_names = nuisance + list(free) + law_names
         search = cls(lin, evaluator, trials, replayed, nuisance, free, model_names, samples, thresholds, waterfall)
         search.friction_search = note
         search.scatter = _scatter(lin, evaluator, thresholds)  # at the model the rounds start from
