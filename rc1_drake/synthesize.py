@@ -71,7 +71,7 @@ class Variation:
 
 
 # The paper's campaign (section 4, Table 2) plus one joint-2 trial. The bias straightens a joint-7
-# failure in this model (docs/identification.md).
+# failure in this model (docs/sweeps.md).
 PAPER_DESIGN = [Case([], 5), Case([7], 5), Case([13], 5), Case([7], 5, bias_deg=-0.9), Case([2], 1)]
 
 # The richest design within RC1's servos (joint speed A omega <= 140 deg/s) whose trials replay

@@ -92,7 +92,7 @@ def test_samples_of_the_spline_match_scipys_spline_values_and_slopes():
 def test_about_the_gait_wave_the_spline_no_longer_shrinks_it():
     """A 30 deg gait wave at 140 deg/s, 10 s at 50 Hz, 0.2 deg of noise, 20 draws: the spline of the angles alone
     shrinks the wave (its error's mean over the draws, the systematic part, is 0.016 deg RMS: enough to turn a replay
-    3.5 cm over 3 m, docs/measurements.md); about the wave that part is the draws' own scatter of the mean, and each
+    3.5 cm over 3 m, docs/findings.md (33)); about the wave that part is the draws' own scatter of the mean, and each
     draw's error is a third."""
     t, omega = np.arange(0.0, 10.0, 0.02), np.radians(140.0)
     truth = np.radians(30.0) * np.sin(omega * t - 0.7) + 0.01

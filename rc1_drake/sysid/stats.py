@@ -102,8 +102,8 @@ class Uncertainty:
     def warnings(self) -> list[str]:
         return [
             f"{n}: not identifiable from these trials (relative standard error "
-            f"{'inf' if not math.isfinite(se) else f'{100 * se / max(abs(v), 1e-12):.0f}%'}); its value is the "
-            f"start value, not a fit"
+            f"{'inf' if not math.isfinite(se) else f'{100 * se / max(abs(v), 1e-12):.0f}%'}); its value is not "
+            f"a fit these trials support"
             for n, v, se, ok in zip(self.names, self.values, self.standard_errors, self.identifiable, strict=True)
             if not ok
         ]
@@ -140,7 +140,7 @@ def uncertainty(
     residual variance of each channel (channel_variances), plus, with `input_noise_samples`, the
     covariance that the angle noise in the replays' input causes (CampaignResiduals.input_noise: that
     many more replays per trial; INPUT_NOISE_SAMPLES by default, 0 leaves it out and understates the
-    intervals several times over, docs/identification.md); with `trial_jackknife_too`, over the parameters the fit
+    intervals, docs/findings.md (32)); with `trial_jackknife_too`, over the parameters the fit
     moved (`fitted`, names; all free ones by default) that the noise lets the data see (the sandwich's relative
     standard error under `max_relative_error`), the larger of that and the linearized trial jackknife in every
     direction (trial_jackknife, larger_covariance), as the diagnosis's fit takes it, and of the jackknife over the
