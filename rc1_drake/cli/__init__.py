@@ -15,6 +15,7 @@ from ..config import Rc1Error
 from ..engine import ENGINES, engine_for
 from .compare import add_compare, cmd_compare
 from .compensate import add_compensate, cmd_compensate
+from .design import add_design, cmd_design
 from .diagnose import add_diagnose, cmd_diagnose
 from .effects import add_effects, cmd_effects
 from .identify import add_identify, cmd_identify
@@ -37,6 +38,7 @@ def make_parser() -> argparse.ArgumentParser:
         add_compensate,
         add_effects,
         add_diagnose,
+        add_design,
         add_reproduce,
     ):
         add(sub)
@@ -77,6 +79,7 @@ def _dispatch(args) -> int:
             "compensate": cmd_compensate,
             "effects": cmd_effects,
             "diagnose": cmd_diagnose,
+            "design": cmd_design,
             "reproduce": cmd_reproduce,
         }[args.command](args)
     except Rc1Error as e:

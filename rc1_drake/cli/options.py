@@ -243,11 +243,11 @@ def check_outputs(args) -> None:
     in an unwritable path): the folders of --json and --out, and --plots, are created and written to once."""
     files = {
         "json": True,
-        "out": args.command != "sweep",
+        "out": args.command not in ("sweep", "design"),
         "plots": False,
         "checkpoint": False,
         "report": False,
-    }  # sweep's --out: a folder
+    }  # sweep's and design's --out: a folder
     folders = [
         (f"--{name} {getattr(args, name)}", getattr(args, name).parent if is_file else getattr(args, name))
         for name, is_file in files.items()

@@ -1,0 +1,182 @@
+"""The next experiment (issue 68): the budget's trials that best tell a diagnosis's open hypotheses apart, chosen
+together from designs drawn over what the robot and the lab can run, and written as a plan a lab can run.
+
+Every candidate design is synthesized under every hypothesis (separation.synthesized_trial), dropped where a
+hypothesis's head path leaves the floor or turns tighter than RC1 can, and each hypothesis is linearized on every
+other's trials (separation.rival_linearization). The trials are then chosen greedily, each step adding the design
+that most raises the worst pair's distance over the trials chosen so far — the rival refits its starts, the free
+friction and its own effects over all of them together, so that a design which only repeats what another already
+shows adds little (maximin T-optimality, evaluated again at each step)."""
+
+import dataclasses
+import json
+import os
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ..config import Rc1Error
+from ..executor import make_executor
+from ..sysid.evaluate import Evaluator
+from .hypotheses import Hypothesis, open_hypotheses, pairs
+from .lab import Lab, TrialDesign, off_the_floor, sampled_designs
+from .separation import distance, rival_linearization, synthesized_trial, told_apart
+
+# The paper's cases and the probe study's kinds among the candidates: a design has to beat them to be chosen.
+PAPER_KINDS = [
+    TrialDesign(()),
+    TrialDesign((7,)),
+    TrialDesign((13,)),
+    TrialDesign((7,), bias_deg=-0.9, amplitude_deg=37.1),
+    TrialDesign((2,), seconds=5.0),
+    TrialDesign((), amplitude_deg=34.0, bias_deg=4.0),
+    TrialDesign((), amplitude_deg=34.0, bias_deg=-4.0),
+]
+
+
+@dataclasses.dataclass
+class Plan:
+    hypotheses: list[Hypothesis]
+    chosen: list[TrialDesign]
+    # per step: "a | b" -> the pair's distance over the trials chosen up to it (the worse of the two directions)
+    evidence: list[dict[str, float]]
+    paths: list[dict[str, list]]  # per chosen trial: hypothesis -> its head path [[x, y], ...]
+    considered: int
+    dropped: dict[str, str]  # a design's label -> why it cannot be run
+    simulations: int
+    wall_s: float
+
+    def to_json(self) -> dict:
+        return {
+            "hypotheses": [
+                {"name": h.name, "friction": dataclasses.asdict(h.friction), "effects": h.effects}
+                for h in self.hypotheses
+            ],  # fmt: skip
+            "trials": [dataclasses.asdict(d) | {"label": d.label()} for d in self.chosen],
+            "evidence": self.evidence,
+            "told_apart": [{pair: told_apart(d) for pair, d in step.items()} for step in self.evidence],
+            "considered": self.considered,
+            "dropped": self.dropped,
+            "simulations": self.simulations,
+            "wall_s": self.wall_s,
+        }
+
+    def format(self) -> str:
+        names = ", ".join(h.name for h in self.hypotheses)
+        lines = [f"the next {len(self.chosen)} trials to tell apart {names} (of {self.considered} designs):"]
+        for k, (d, step) in enumerate(zip(self.chosen, self.evidence, strict=True), 1):
+            worst = min(step, key=step.get)
+            lines.append(
+                f"  {k}. {d.label()}: worst pair {worst} {step[worst]:.3g} apart "
+                f"(told apart {100 * told_apart(step[worst]):.0f}% of the time)"
+            )
+        lines.append(f"{self.simulations} simulations, {self.wall_s:.0f} s")
+        return "\n".join(lines)
+
+    def write(self, folder) -> None:
+        """PLAN/: plan.json, one scenario file per trial (what to set on the robot and how long; `rc1 run
+        --scenarios-file PLAN/trial_k.yaml --scenario trial_k`), and a figure of the head paths each hypothesis
+        predicts for each trial."""
+        from pydrake.common.yaml import yaml_dump_typed
+
+        from ..config import Scenario
+
+        folder = Path(folder)
+        folder.mkdir(parents=True, exist_ok=True)
+        (folder / "plan.json").write_text(json.dumps(self.to_json(), indent=2) + "\n")
+        for k, d in enumerate(self.chosen, 1):
+            yaml_dump_typed(
+                d.scenario(), schema=Scenario, filename=str(folder / f"trial_{k}.yaml"), child_name=f"trial_{k}"
+            )
+        _plot_paths(self, folder / "paths.png")
+
+
+def _plot_paths(plan: Plan, path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    count = max(len(plan.chosen), 1)
+    fig, axes = plt.subplots(1, count, figsize=(4.5 * count, 4), squeeze=False)
+    for ax, d, paths in zip(axes[0], plan.chosen, plan.paths, strict=False):
+        for name, xy in paths.items():
+            xy = np.asarray(xy)
+            ax.plot(xy[:, 0], xy[:, 1], label=f"if {name}")
+        ax.set_title(d.label(), fontsize=8, wrap=True)
+        ax.set_xlabel("x (m)")
+        ax.set_ylabel("y (m)")
+        ax.set_aspect("equal", adjustable="datalim")
+        ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def design_trials(*, diagnosis: dict, lab: Lab | None = None, budget: int = 4, candidates: int = 16, seed: int = 0,
+                  workers=None, progress=None, where: str = "diagnosis") -> Plan:  # fmt: skip
+    """The plan of `budget` trials (module docstring) among `candidates` designs drawn from `lab` (default Lab())
+    and PAPER_KINDS, for the hypotheses `diagnosis` (its JSON) leaves open; the friction it identified is free."""
+    started = time.perf_counter()
+    lab = lab or Lab()
+    if budget < 1:
+        raise Rc1Error(f"design: the budget must be at least 1 trial, got {budget}")
+    hypotheses = open_hypotheses(diagnosis, where)
+    free = list(diagnosis.get("free_friction", []))
+    designs = [d for d in PAPER_KINDS if d.seconds <= lab.max_seconds and list(d.failed_joints) in lab.failures]
+    designs += sampled_designs(lab, candidates, np.random.default_rng(seed))
+    with make_executor(workers=workers or os.cpu_count()) as executor:
+        evaluator = Evaluator(executor, progress)
+        made = {
+            noisy: [
+                evaluator.map(
+                    synthesized_trial,
+                    [(d, h, lab, noisy, seed + k, f"d{k}") for k, d in enumerate(designs)],
+                    f"the designs under {h.name}" + (" with noise" if noisy else ""),
+                )  # fmt: skip
+                for h in hypotheses
+            ]
+            for noisy in (False, True)
+        }
+        dropped = {}
+        for k, d in enumerate(designs):
+            for trials in made[False]:
+                t = trials[k]
+                if why := off_the_floor(t.t, t.camera[:, :2], t.head_yaw_rate, lab):
+                    dropped[d.label()] = why
+        keep = [k for k, d in enumerate(designs) if d.label() not in dropped]
+        if not keep:
+            raise Rc1Error("design: no candidate design stays on the lab's floor")
+        lins = {
+            (a, b): rival_linearization(
+                [made[False][a][k] for k in keep], [made[True][a][k] for k in keep], hypotheses[b], free, evaluator
+            )  # fmt: skip
+            for a in range(len(hypotheses))
+            for b in range(len(hypotheses))
+            if a != b
+        }
+        simulations = evaluator.simulations
+    chosen, evidence = [], []
+    for _ in range(min(budget, len(keep))):
+        scored = []
+        for n in (n for n in range(len(keep)) if n not in chosen):
+            step = _pair_distances(hypotheses, lins, chosen + [n])
+            scored.append((min(step.values()), n, step))
+        _, best, step = max(scored, key=lambda s: s[0])
+        chosen.append(best)
+        evidence.append(step)
+    picked = [designs[keep[n]] for n in chosen]
+    paths = [{h.name: made[False][i][keep[n]].camera[:, :2].tolist() for i, h in enumerate(hypotheses)} for n in chosen]
+    return Plan(hypotheses, picked, evidence, paths, len(designs), dropped, simulations,
+                time.perf_counter() - started)  # fmt: skip
+
+
+def _pair_distances(hypotheses, lins, indices) -> dict[str, float]:
+    """Per pair "a | b": the smaller of a's trials' distance from b's fit and b's trials' from a's."""
+    return {
+        f"{hypotheses[a].name} | {hypotheses[b].name}": min(
+            distance(lins[a, b], indices), distance(lins[b, a], indices)
+        )
+        for a, b in pairs(hypotheses)
+    }

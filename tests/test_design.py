@@ -1,0 +1,152 @@
+"""The next experiment (issue 68): the lab's space, the open hypotheses, the T-optimal distance and the plan."""
+
+import dataclasses
+import json
+import math
+
+import numpy as np
+import pytest
+import yaml
+from pydrake.common.yaml import yaml_load_typed
+
+from rc1_drake.cli import main
+from rc1_drake.config import JOINT_LIMIT_DEG, Friction, Rc1Error, Scenario
+from rc1_drake.design import Hypothesis, Lab, TrialDesign, load_lab, open_hypotheses
+from rc1_drake.design.lab import infeasible, joint_speed_deg_s, off_the_floor, sampled_designs
+from rc1_drake.design.separation import distance, rival_linearization, synthesized_trial, told_apart
+from rc1_drake.diagnose.decide import NOT_DETECTABLE
+from rc1_drake.diagnose.fit import fit
+from rc1_drake.synthesize import SERVO_SPEED_LIMIT_DEG_S
+from rc1_drake.sysid.evaluate import Evaluator
+
+
+def test_a_design_the_robot_or_the_lab_cannot_run_says_why_and_drawn_designs_can_all_run():
+    lab = Lab()
+    assert infeasible(TrialDesign(), lab) is None  # the paper's gait: 38 deg at 140 deg/s, 93 deg/s of joint speed
+    assert "cannot power off [5]" in infeasible(TrialDesign((5,)), lab)
+    assert "past the joints' limit" in infeasible(TrialDesign(bias_deg=4.0), lab)
+    assert "servos reach 140" in infeasible(TrialDesign(frequency_deg_s=250.0), lab)
+    assert "outside the lab's" in infeasible(TrialDesign(seconds=20.0), lab)
+    for d in sampled_designs(lab, 40, np.random.default_rng(1)):
+        assert d.amplitude_deg + abs(d.bias_deg) <= JOINT_LIMIT_DEG + 1e-9
+        assert joint_speed_deg_s(d) <= SERVO_SPEED_LIMIT_DEG_S + 1e-9
+        assert list(d.failed_joints) in lab.failures and lab.min_seconds <= d.seconds <= lab.max_seconds
+
+
+def test_a_path_off_the_floor_or_turning_tighter_than_the_robot_can_is_refused():
+    lab, t = Lab(), np.linspace(0.0, 10.0, 101)
+    straight = np.column_stack([0.3 * t, np.zeros_like(t)])
+    assert off_the_floor(t, straight, np.zeros_like(t), lab) is None
+    assert off_the_floor(t, straight * 2.0, np.zeros_like(t), lab) == "the head leaves the floor"  # 6 m > 4 m
+    radius, rate = 0.4, 0.5  # rad/s: 0.2 m/s round a 0.4 m circle
+    circle = radius * np.column_stack([np.sin(rate * t), 1.0 - np.cos(rate * t)])
+    assert "0.40 m turning radius" in off_the_floor(t, circle, np.full_like(t, rate), lab)
+    wide = 0.8 * np.column_stack([np.sin(0.2 * t), 1.0 - np.cos(0.2 * t)])  # 0.16 m/s, 0.2 rad/s: 0.8 m
+    assert off_the_floor(t, wide, np.full_like(t, 0.2), lab) is None
+
+
+@pytest.mark.parametrize(
+    "text, named",
+    [
+        ("floor_x_m: [1.0, 2.0]\n", "floor_x_m must be [low, high] about the start"),
+        ("failures: [[14]]\n", "joint numbers are 1..13"),
+        ("min_seconds: 5.0\nmax_seconds: 4.0\n", "min_seconds <= max_seconds"),
+        ("floor: 3\n", "floor"),
+    ],
+)
+def test_a_lab_file_with_a_bad_field_is_refused_in_one_line_naming_it(tmp_path, text, named):
+    path = tmp_path / "lab.yaml"
+    path.write_text(text)
+    with pytest.raises(Rc1Error) as error:
+        load_lab(path)
+    assert str(path) in str(error.value) and named in str(error.value) and "\n" not in str(error.value)
+
+
+def _candidate(name, coordinates, status="not significant", detectable=None):
+    return {"name": name, "coordinates": coordinates, "status": status, "detectable_strength": detectable or {}}
+
+
+def _diagnosis(verdict, candidates, ambiguous=(), accepted=None, effects=None):
+    model = {"friction": dataclasses.asdict(Friction()), "effects": effects or {}}
+    rounds = [{"accepted": accepted, "ambiguous": list(ambiguous), "candidates": candidates}]
+    return {"model": model, "verdict": verdict, "rounds": rounds, "accepted_effects": [accepted] if accepted else []}
+
+
+def test_the_open_hypotheses_are_read_from_the_diagnosis_for_each_verdict():
+    toe, drag = (
+        _candidate("wheel_toe", {"wheel_toe_deg": [1.2, 0.4]}),
+        _candidate("head_drag", {"head_drag_mu": [0.3, 0.1]}),
+    )
+    rivals = open_hypotheses(_diagnosis("ambiguous", [toe, drag], ambiguous=["wheel_toe", "head_drag"]))
+    assert [(h.name, h.effects, h.owned) for h in rivals] == [
+        ("wheel_toe", {"wheel_toe_deg": 1.2}, ("wheel_toe",)),
+        ("head_drag", {"head_drag_mu": 0.3}, ("head_drag",)),
+    ]
+    found = _diagnosis("effect_found", [dict(toe, status="accepted"), drag], accepted="wheel_toe",
+                       effects={"wheel_toe_deg": 1.2})  # fmt: skip
+    accepted, runner = open_hypotheses(found)
+    assert accepted.effects == {"wheel_toe_deg": 1.2} and runner.effects == {"head_drag_mu": 0.3}  # in its place
+    unseen = _candidate("ground_slope", {"ground_slope_x_deg": [0.0, 1.0]}, NOT_DETECTABLE, {"ground_slope_x_deg": 2.5})
+    nothing = open_hypotheses(_diagnosis("no_missing_effect", [unseen]))
+    assert [h.name for h in nothing] == ["today's model", "ground_slope"]
+    assert nothing[1].effects["ground_slope_deg"] == pytest.approx(2.5) and nothing[0].effects == {}
+    with pytest.raises(Rc1Error, match="leaves one hypothesis"):
+        open_hypotheses(_diagnosis("no_missing_effect", []))
+    with pytest.raises(Rc1Error, match="not a diagnosis's JSON"):
+        open_hypotheses({"verdict": "ambiguous"})
+
+
+def test_two_hypotheses_are_as_far_apart_as_the_rival_cannot_fit_away():
+    """A 3 s trial with no failure: the model is 0 apart from its own trial; a 2 deg wheel toe is farther from
+    the paper's model than a 1 deg one; a rival that fits the toe's strength itself (its own effect) fits a
+    toe of another strength away; the distance over two trials is at least either's."""
+    lab, evaluator = Lab(min_seconds=1.0), Evaluator(None)
+    design = TrialDesign(seconds=3.0)
+    paper = Hypothesis("paper", Friction(), {})
+    made = {}
+    for name, toe in (("paper", 0.0), ("toe 1", 1.0), ("toe 2", 2.0)):
+        h = Hypothesis(name, Friction(), {"wheel_toe_deg": toe} if toe else {})
+        made[name] = [synthesized_trial(design, h, lab, noisy, 3, "d0") for noisy in (False, True)]
+    near = {name: distance(rival_linearization([m[0]], [m[1]], paper, [], evaluator), [0]) for name, m in made.items()}
+    assert near["paper"] < 0.05 * near["toe 1"] and near["toe 1"] < near["toe 2"], near
+    fits_toe = Hypothesis("toe fitted", Friction(), {"wheel_toe_deg": 1.0}, ("wheel_toe",))
+    lin = rival_linearization([made["toe 2"][0]], [made["toe 2"][1]], fits_toe, [], evaluator)
+    assert distance(lin, [0]) < 0.1 * near["toe 2"], (distance(lin, [0]), near["toe 2"])
+    names = [c.name for c in lin.coordinates]
+    assert distance(lin, [0]) == pytest.approx(lin.weighted_sum_of_squares(fit(lin, names).residual))
+    assert told_apart(0.0) == pytest.approx(0.5) and told_apart(16.0) == pytest.approx(0.97725, abs=1e-4)
+
+
+@pytest.mark.slow
+def test_rc1_design_writes_a_plan_a_lab_can_run(tmp_path, capsys):
+    """From a diagnosis's JSON, one trial among the paper's kinds and two drawn designs of at most 3 s: a scenario
+    file Scenario loads, plan.json with the pair's distance, a figure; a bad lab file is one line."""
+    campaign = tmp_path / "campaign"
+    assert main(["synthesize", str(campaign), "--design", "identification", "--time-limit-s", "1"]) == 0
+    toe, drag = (
+        _candidate("wheel_toe", {"wheel_toe_deg": [1.5, 0.4]}),
+        _candidate("head_drag", {"head_drag_mu": [0.4, 0.1]}),
+    )
+    diagnosis = tmp_path / "diagnosis.json"
+    diagnosis.write_text(json.dumps(_diagnosis("ambiguous", [toe, drag], ambiguous=["wheel_toe", "head_drag"])))
+    lab = tmp_path / "lab.yaml"
+    lab.write_text(yaml.safe_dump({"failures": [[], [7]], "min_seconds": 2.0, "max_seconds": 3.0}))
+    plan = tmp_path / "plan"
+    argv = ["design", str(campaign), "--diagnosis", str(diagnosis), "--lab", str(lab), "--budget", "1",
+            "--designs", "2", "--workers", "2", "--out", str(plan)]  # fmt: skip
+    assert main(argv) == 0
+    written = json.loads((plan / "plan.json").read_text())
+    assert len(written["trials"]) == 1 and list(written["evidence"][0]) == ["wheel_toe | head_drag"]
+    assert written["evidence"][0]["wheel_toe | head_drag"] > 0
+    scenario = yaml_load_typed(schema=Scenario, filename=str(plan / "trial_1.yaml"), child_name="trial_1")
+    assert math.isclose(scenario.stop.time_limit_s, written["trials"][0]["seconds"])
+    run = tmp_path / "run.json"
+    assert (
+        main(["run", "--scenarios-file", str(plan / "trial_1.yaml"), "--scenario", "trial_1", "--json", str(run)]) == 0
+    )
+    assert json.loads(run.read_text())["failed_joints"] == written["trials"][0]["failed_joints"]
+    assert (plan / "paths.png").stat().st_size > 10_000
+    assert "the next 1 trials to tell apart wheel_toe, head_drag" in capsys.readouterr().out
+    lab.write_text("failures: [[14]]\n")
+    assert main(argv) == 2
+    assert "joint numbers are 1..13" in capsys.readouterr().err
