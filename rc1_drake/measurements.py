@@ -112,6 +112,25 @@ class Campaign:
         return [t for t in self.trials if trial_ids is None or t.trial_id in trial_ids]
 
 
+def merged_campaigns(folders) -> Campaign:
+    """Several campaign folders as one (a campaign and the trials a plan added to it, rc1 design): named after
+    the first; a trial id taken twice is prefixed by its folder's name from its second folder on."""
+    if len({Path(f).resolve() for f in folders}) < len(folders):
+        raise Rc1Error(f"{', '.join(map(str, folders))}: a campaign folder is given twice")
+    campaigns = [load_campaign(f) for f in folders]
+    if len(campaigns) == 1:
+        return campaigns[0]
+    trials, seen = [], set()
+    for campaign in campaigns:
+        for trial in campaign.trials:
+            trial_id = trial.trial_id if trial.trial_id not in seen else f"{Path(campaign.path).name}-{trial.trial_id}"
+            if trial_id in seen:
+                raise Rc1Error(f"{campaign.path}: trial {trial.trial_id} is in two of the folders given")
+            seen.add(trial_id)
+            trials.append(dataclasses.replace(trial, trial_id=trial_id))
+    return Campaign(path=campaigns[0].path, trials=trials)
+
+
 def limit_warnings(trials) -> list[str]:
     """One line per joint whose readings pass its limit (Trial.beyond_limit) in any of `trials`."""
     lines = []

@@ -40,6 +40,7 @@ class Case:
     trials: int
     bias_deg: float = 0.0
     gait: Gait | None = None  # the commanded gait (its bias replaced by bias_deg); None: the paper's
+    seconds: float | None = None  # its trials end after this long (no line, no turns); None: the campaign's stop
 
 
 @dataclasses.dataclass
@@ -183,7 +184,7 @@ def synthesize_campaign(
                     y_m=float(rng.normal(0, variation.position_m)),
                     heading_deg=float(rng.normal(0, variation.heading_deg)),
                 ),
-                stop=stop,
+                stop=stop if case.seconds is None else Stop(line_x_m=None, revolutions=None, time_limit_s=case.seconds),
                 numerics=numerics,
             )
             if truth_model == "reference":

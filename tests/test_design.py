@@ -16,6 +16,7 @@ from rc1_drake.design.lab import infeasible, joint_speed_deg_s, off_the_floor, s
 from rc1_drake.design.separation import distance, rival_linearization, synthesized_trial, told_apart
 from rc1_drake.diagnose.decide import NOT_DETECTABLE
 from rc1_drake.diagnose.fit import fit
+from rc1_drake.measurements import load_campaign, merged_campaigns
 from rc1_drake.synthesize import SERVO_SPEED_LIMIT_DEG_S
 from rc1_drake.sysid.evaluate import Evaluator
 
@@ -147,6 +148,17 @@ def test_rc1_design_writes_a_plan_a_lab_can_run(tmp_path, capsys):
     assert json.loads(run.read_text())["failed_joints"] == written["trials"][0]["failed_joints"]
     assert (plan / "paths.png").stat().st_size > 10_000
     assert "the next 1 trials to tell apart wheel_toe, head_drag" in capsys.readouterr().out
+    added = tmp_path / "added"
+    assert main(["synthesize", str(added), "--plan", str(plan), "--seed", "4"]) == 0
+    (trial,) = load_campaign(added).trials
+    assert trial.t[-1] == pytest.approx(written["trials"][0]["seconds"], abs=0.02)
+    both = merged_campaigns([campaign, added])
+    assert len(both.trials) == len(load_campaign(campaign).trials) + 1
+    assert len({t.trial_id for t in both.trials}) == len(both.trials)  # an id taken twice is prefixed
+    with pytest.raises(Rc1Error, match="given twice"):
+        merged_campaigns([campaign, campaign])
     lab.write_text("failures: [[14]]\n")
     assert main(argv) == 2
     assert "joint numbers are 1..13" in capsys.readouterr().err
+    assert main(["synthesize", str(tmp_path / "x"), "--plan", str(tmp_path)]) == 2
+    assert "not a plan folder" in capsys.readouterr().err

@@ -38,7 +38,8 @@ def add_diagnose(sub) -> None:
         help="find the missing physics: fit, where it fails, rank candidate effects, "
         "accept what holds on held-out trials, repeat",
     )
-    dgn.add_argument("campaign", type=Path)
+    dgn.add_argument("campaign", type=Path, nargs="+", help="a campaign folder, or several diagnosed as one (a "
+                     "campaign and the trials of its plan: rc1 design, rc1 synthesize --plan)")  # fmt: skip
     add_model_file(
         dgn,
         "today's model (friction and effects; default: the paper's identified friction, no effect)",

@@ -219,12 +219,14 @@ def model_from_args(overrides: dict, model_file=None) -> tuple:
 
 
 def loaded_campaign(folder):
-    """measurements.load_campaign, with its warnings (once per joint) on stderr."""
-    from ..measurements import load_campaign
+    """measurements.load_campaign, with its warnings (once per joint) on stderr; several folders (a list) as one
+    campaign (measurements.merged_campaigns)."""
+    from ..measurements import merged_campaigns
 
-    campaign = load_campaign(folder)
+    folders = folder if isinstance(folder, list) else [folder]
+    campaign = merged_campaigns(folders)
     for line in campaign.warnings():
-        print(f"warning: {folder}: {line}", file=sys.stderr)
+        print(f"warning: {', '.join(map(str, folders))}: {line}", file=sys.stderr)
     return campaign
 
 

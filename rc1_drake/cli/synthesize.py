@@ -66,6 +66,8 @@ def add_synthesize(sub) -> None:
         metavar="T",
         help="start the recording T s after the robot started (the data then begin in motion)",
     )
+    syn.add_argument("--plan", type=Path, metavar="PLAN", help="the trials of a plan (rc1 design --out), in place "
+                     "of --design, at its lab's sample period and potentiometer noise")  # fmt: skip
     syn.add_argument("--seed", type=int, default=0)
     syn.add_argument("--truth", type=Path, metavar="PATH", help="where to record the truth (JSON)")
 
@@ -75,8 +77,16 @@ def cmd_synthesize(args) -> int:
 
     if args.out.exists():
         raise Rc1Error(f"{args.out}: already exists; synthesize writes a new campaign folder")
-    design = DESIGNS[args.design]
-    if args.trials_per_case:
+    design, sample_period_s, noise = DESIGNS[args.design], args.sample_period_s, Noise().scaled(args.noise_scale)
+    if args.plan:
+        from ..design import load_plan
+
+        if args.trials_per_case:
+            raise Rc1Error("--trials-per-case sets --design's cases; a plan's trials are one each")
+        designs, lab = load_plan(args.plan)
+        design, sample_period_s = [d.case() for d in designs], lab.sample_period_s
+        noise = dataclasses.replace(noise, potentiometer_deg=lab.potentiometer_deg * args.noise_scale)
+    elif args.trials_per_case:
         design = [
             dataclasses.replace(c, trials=args.trials_per_case if c.trials > 1 or args.design != "paper" else c.trials)
             for c in design
@@ -90,13 +100,13 @@ def cmd_synthesize(args) -> int:
         design=design,
         friction=friction,
         effects=effects,
-        noise=Noise().scaled(args.noise_scale),
+        noise=noise,
         camera=not args.no_camera,
         seed=args.seed,
         truth_file=args.truth,
         stop=stop,
         truth_model=args.truth_model,
-        sample_period_s=args.sample_period_s,
+        sample_period_s=sample_period_s,
         record_after_s=args.record_after_s,
     )
     print(f"wrote {len(campaign.trials)} trials to {args.out}" + (f"; truth in {args.truth}" if args.truth else ""))

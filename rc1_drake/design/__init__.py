@@ -4,6 +4,6 @@
 
 from .hypotheses import Hypothesis, open_hypotheses
 from .lab import Lab, TrialDesign, load_lab
-from .plan import Plan, design_trials
+from .plan import Plan, design_trials, load_plan
 
-__all__ = ["Hypothesis", "Lab", "Plan", "TrialDesign", "design_trials", "load_lab", "open_hypotheses"]
+__all__ = ["Hypothesis", "Lab", "Plan", "TrialDesign", "design_trials", "load_lab", "load_plan", "open_hypotheses"]

@@ -81,7 +81,7 @@ class TrialDesign:
         )
 
     def case(self) -> Case:
-        return Case(list(self.failed_joints), 1, bias_deg=self.bias_deg, gait=self.gait())
+        return Case(list(self.failed_joints), 1, bias_deg=self.bias_deg, gait=self.gait(), seconds=self.seconds)
 
     def stop(self) -> Stop:
         return Stop(line_x_m=None, revolutions=None, time_limit_s=self.seconds)

@@ -37,6 +37,7 @@ PAPER_KINDS = [
 
 @dataclasses.dataclass
 class Plan:
+    lab: Lab
     hypotheses: list[Hypothesis]
     chosen: list[TrialDesign]
     # per step: "a | b" -> the pair's distance over the trials chosen up to it (the worse of the two directions)
@@ -49,6 +50,7 @@ class Plan:
 
     def to_json(self) -> dict:
         return {
+            "lab": dataclasses.asdict(self.lab),
             "hypotheses": [
                 {"name": h.name, "friction": dataclasses.asdict(h.friction), "effects": h.effects}
                 for h in self.hypotheses
@@ -168,8 +170,26 @@ def design_trials(*, diagnosis: dict, lab: Lab | None = None, budget: int = 4, c
         evidence.append(step)
     picked = [designs[keep[n]] for n in chosen]
     paths = [{h.name: made[False][i][keep[n]].camera[:, :2].tolist() for i, h in enumerate(hypotheses)} for n in chosen]
-    return Plan(hypotheses, picked, evidence, paths, len(designs), dropped, simulations,
+    return Plan(lab, hypotheses, picked, evidence, paths, len(designs), dropped, simulations,
                 time.perf_counter() - started)  # fmt: skip
+
+
+def load_plan(folder) -> tuple[list[TrialDesign], Lab]:
+    """The trials and the lab of a plan folder (rc1 design --out), or Rc1Error naming what is wrong."""
+    path = Path(folder) / "plan.json"
+    if not path.is_file():
+        raise Rc1Error(f"{folder}: not a plan folder (no plan.json; rc1 design --out writes one)")
+    fields = [f.name for f in dataclasses.fields(TrialDesign)]
+    try:
+        data = json.loads(path.read_text())
+        designs = [
+            TrialDesign(**{k: tuple(t[k]) if k == "failed_joints" else t[k] for k in fields}) for t in data["trials"]
+        ]
+        lab = Lab(**data["lab"])
+    except (json.JSONDecodeError, KeyError, TypeError) as error:
+        raise Rc1Error(f"{path}: not a plan rc1 design wrote ({type(error).__name__}: {error})") from None
+    lab.check(str(path))
+    return designs, lab
 
 
 def _pair_distances(hypotheses, lins, indices) -> dict[str, float]:
