@@ -139,6 +139,8 @@ def test_rc1_design_writes_a_plan_a_lab_can_run(tmp_path, capsys):
     written = json.loads((plan / "plan.json").read_text())
     assert len(written["trials"]) == 1 and list(written["evidence"][0]) == ["wheel_toe | head_drag"]
     assert written["evidence"][0]["wheel_toe | head_drag"] > 0
+    check = written["check"]["wheel_toe's trials, head_drag fitted"]  # one noisy replicate: its ratio beside the plan's
+    assert len(check["realized"]) == 1 and check["predicted"] >= written["evidence"][0]["wheel_toe | head_drag"]
     scenario = yaml_load_typed(schema=Scenario, filename=str(plan / "trial_1.yaml"), child_name="trial_1")
     assert math.isclose(scenario.stop.time_limit_s, written["trials"][0]["seconds"])
     run = tmp_path / "run.json"
@@ -147,7 +149,8 @@ def test_rc1_design_writes_a_plan_a_lab_can_run(tmp_path, capsys):
     )
     assert json.loads(run.read_text())["failed_joints"] == written["trials"][0]["failed_joints"]
     assert (plan / "paths.png").stat().st_size > 10_000
-    assert "the next 1 trials to tell apart wheel_toe, head_drag" in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert "the next 1 trials to tell apart wheel_toe, head_drag" in printed and "the plan's own check" in printed
     added = tmp_path / "added"
     assert main(["synthesize", str(added), "--plan", str(plan), "--seed", "4"]) == 0
     (trial,) = load_campaign(added).trials

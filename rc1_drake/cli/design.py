@@ -21,6 +21,9 @@ def add_design(sub) -> None:
                    help="designs drawn over the lab's space, beside the paper's kinds (default 16)")  # fmt: skip
     d.add_argument("--lab", type=Path, metavar="LAB.yaml", help="the lab's floor, failures and sensors "
                    "(default: the paper's experiment at the campaign's sample period; docs/design.md)")  # fmt: skip
+    d.add_argument("--check", type=lambda t: whole_number(t, 0), default=1, metavar="K",
+                   help="noisy replicates of the plan under each hypothesis, its prediction checked against them "
+                   "(default 1; 0: none)")  # fmt: skip
     d.add_argument("--seed", type=int, default=0)
     d.add_argument("--out", type=Path, required=True, metavar="PLAN", help="the plan's folder")
     d.add_argument("--workers", type=positive_int, metavar="N", help="local processes (default: every core)")
@@ -51,8 +54,8 @@ def cmd_design(args) -> int:
                           start_rates=args.start_rates, probe_study=False)  # fmt: skip
         diagnosis, where = jsonable(result.to_json()), f"the diagnosis of {args.campaign}"
         print(f"diagnosis: {result.verdict}: {result.explanation.splitlines()[0] if result.explanation else ''}")
-    plan = design_trials(diagnosis=diagnosis, lab=lab, budget=args.budget, candidates=args.designs,
-                         seed=args.seed, workers=args.workers, progress=progress, where=where)  # fmt: skip
+    plan = design_trials(diagnosis=diagnosis, lab=lab, budget=args.budget, candidates=args.designs, seed=args.seed,
+                         replicates=args.check, workers=args.workers, progress=progress, where=where)  # fmt: skip
     plan.write(args.out)
     print(plan.format())
     print(f"plan written to {args.out}/ (plan.json, trial_*.yaml, paths.png)")

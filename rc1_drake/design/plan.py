@@ -19,6 +19,7 @@ import numpy as np
 from ..config import Rc1Error
 from ..executor import make_executor
 from ..sysid.evaluate import Evaluator
+from .check import check_lines, predicted_separation, realized_separation
 from .hypotheses import Hypothesis, open_hypotheses, pairs
 from .lab import Lab, TrialDesign, off_the_floor, sampled_designs
 from .separation import distance, rival_linearization, synthesized_trial, told_apart
@@ -47,6 +48,8 @@ class Plan:
     dropped: dict[str, str]  # a design's label -> why it cannot be run
     simulations: int
     wall_s: float
+    predicted: dict[str, float] = dataclasses.field(default_factory=dict)  # per direction (check.py)
+    realized: dict[str, list[float]] = dataclasses.field(default_factory=dict)  # per direction, each replicate
 
     def to_json(self) -> dict:
         return {
@@ -58,6 +61,7 @@ class Plan:
             "trials": [dataclasses.asdict(d) | {"label": d.label()} for d in self.chosen],
             "evidence": self.evidence,
             "told_apart": [{pair: told_apart(d) for pair, d in step.items()} for step in self.evidence],
+            "check": {n: {"predicted": self.predicted[n], "realized": v} for n, v in self.realized.items()},
             "considered": self.considered,
             "dropped": self.dropped,
             "simulations": self.simulations,
@@ -73,6 +77,11 @@ class Plan:
                 f"  {k}. {d.label()}: worst pair {worst} {step[worst]:.3g} apart "
                 f"(told apart {100 * told_apart(step[worst]):.0f}% of the time)"
             )
+        if self.realized:
+            count = len(next(iter(self.realized.values())))
+            lines.append(f"the plan's own check ({count} noisy replicate(s) under each hypothesis; -2 log likelihood "
+                         "ratio):")  # fmt: skip
+            lines += check_lines(self.predicted, self.realized)
         lines.append(f"{self.simulations} simulations, {self.wall_s:.0f} s")
         return "\n".join(lines)
 
@@ -117,9 +126,10 @@ def _plot_paths(plan: Plan, path: Path) -> None:
 
 
 def design_trials(*, diagnosis: dict, lab: Lab | None = None, budget: int = 4, candidates: int = 16, seed: int = 0,
-                  workers=None, progress=None, where: str = "diagnosis") -> Plan:  # fmt: skip
+                  replicates: int = 1, workers=None, progress=None, where: str = "diagnosis") -> Plan:  # fmt: skip
     """The plan of `budget` trials (module docstring) among `candidates` designs drawn from `lab` (default Lab())
-    and PAPER_KINDS, for the hypotheses `diagnosis` (its JSON) leaves open; the friction it identified is free."""
+    and PAPER_KINDS, for the hypotheses `diagnosis` (its JSON) leaves open; the friction it identified is free.
+    `replicates`: noisy copies of the plan under each hypothesis for its own check (check.py; 0: none)."""
     started = time.perf_counter()
     lab = lab or Lab()
     if budget < 1:
@@ -130,48 +140,54 @@ def design_trials(*, diagnosis: dict, lab: Lab | None = None, budget: int = 4, c
     designs += sampled_designs(lab, candidates, np.random.default_rng(seed))
     with make_executor(workers=workers or os.cpu_count()) as executor:
         evaluator = Evaluator(executor, progress)
-        made = {
-            noisy: [
-                evaluator.map(
-                    synthesized_trial,
-                    [(d, h, lab, noisy, seed + k, f"d{k}") for k, d in enumerate(designs)],
-                    f"the designs under {h.name}" + (" with noise" if noisy else ""),
-                )  # fmt: skip
-                for h in hypotheses
-            ]
-            for noisy in (False, True)
-        }
-        dropped = {}
-        for k, d in enumerate(designs):
-            for trials in made[False]:
-                t = trials[k]
-                if why := off_the_floor(t.t, t.camera[:, :2], t.head_yaw_rate, lab):
-                    dropped[d.label()] = why
+        made = {noisy: [_synthesized(designs, h, lab, noisy, seed, evaluator) for h in hypotheses] for noisy in (0, 1)}
+        dropped = _dropped(designs, made[0], lab)
         keep = [k for k, d in enumerate(designs) if d.label() not in dropped]
         if not keep:
             raise Rc1Error("design: no candidate design stays on the lab's floor")
         lins = {
             (a, b): rival_linearization(
-                [made[False][a][k] for k in keep], [made[True][a][k] for k in keep], hypotheses[b], free, evaluator
+                [made[0][a][k] for k in keep], [made[1][a][k] for k in keep], hypotheses[b], free, evaluator
             )  # fmt: skip
             for a in range(len(hypotheses))
             for b in range(len(hypotheses))
             if a != b
         }
+        chosen, evidence = _greedy(hypotheses, lins, min(budget, len(keep)))
+        picked = [designs[keep[n]] for n in chosen]
+        realized = realized_separation(picked, hypotheses, lab, free, evaluator, replicates=replicates, seed=seed)
         simulations = evaluator.simulations
+    paths = [{h.name: made[0][i][keep[n]].camera[:, :2].tolist() for i, h in enumerate(hypotheses)} for n in chosen]
+    return Plan(lab, hypotheses, picked, evidence, paths, len(designs), dropped, simulations,
+                time.perf_counter() - started, predicted_separation(hypotheses, lins, chosen), realized)  # fmt: skip
+
+
+def _synthesized(designs, hypothesis, lab, noisy, seed, evaluator) -> list:
+    jobs = [(d, hypothesis, lab, bool(noisy), seed + k, f"d{k}") for k, d in enumerate(designs)]
+    return evaluator.map(synthesized_trial, jobs, f"the designs under {hypothesis.name}" + (" with noise" * noisy))
+
+
+def _dropped(designs, made, lab) -> dict[str, str]:
+    """A design's label -> why it cannot be run, where some hypothesis's trial of it (`made`: per hypothesis)
+    leaves the floor or turns too tight."""
+    out = {}
+    for k, d in enumerate(designs):
+        for trials in made:
+            if why := off_the_floor(trials[k].t, trials[k].camera[:, :2], trials[k].head_yaw_rate, lab):
+                out[d.label()] = why
+    return out
+
+
+def _greedy(hypotheses, lins, count: int) -> tuple[list[int], list[dict]]:
+    """`count` trials, each step the one that most raises the worst pair's distance over those chosen so far."""
     chosen, evidence = [], []
-    for _ in range(min(budget, len(keep))):
-        scored = []
-        for n in (n for n in range(len(keep)) if n not in chosen):
-            step = _pair_distances(hypotheses, lins, chosen + [n])
-            scored.append((min(step.values()), n, step))
+    for _ in range(count):
+        scored = [(min(step.values()), n, step) for n in range(len(lins[0, 1].trials)) if n not in chosen
+                  for step in [_pair_distances(hypotheses, lins, chosen + [n])]]  # fmt: skip
         _, best, step = max(scored, key=lambda s: s[0])
         chosen.append(best)
         evidence.append(step)
-    picked = [designs[keep[n]] for n in chosen]
-    paths = [{h.name: made[False][i][keep[n]].camera[:, :2].tolist() for i, h in enumerate(hypotheses)} for n in chosen]
-    return Plan(lab, hypotheses, picked, evidence, paths, len(designs), dropped, simulations,
-                time.perf_counter() - started)  # fmt: skip
+    return chosen, evidence
 
 
 def load_plan(folder) -> tuple[list[TrialDesign], Lab]:

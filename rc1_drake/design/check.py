@@ -1,0 +1,51 @@
+"""The plan's own check (issue 68 item 3): its trials replicated with noise under each hypothesis, each hypothesis
+and its rival fitted to them, and the realized -2 log likelihood ratio set beside the distance the plan predicted.
+On noisy data the rival's fit leaves the predicted distance plus the noise it cannot fit, the hypothesis's own
+leaves the noise alone: their difference should scatter about the prediction."""
+
+import numpy as np
+
+from .hypotheses import pairs
+from .separation import distance, rival_linearization, synthesized_trial
+
+
+def realized_separation(designs, hypotheses, lab, free, evaluator, *, replicates: int, seed: int) -> dict:
+    """Per direction "a's trials, b fitted": the realized ratio (the rival's weighted sum of squares less a's own,
+    both fitted with their starts, the free friction and their own effects) of each of `replicates` noisy copies
+    of the planned trials (`designs`)."""
+    out: dict[str, list[float]] = {}
+    every = list(range(len(designs)))
+    for r in range(replicates):
+        noisy = [
+            evaluator.map(synthesized_trial, [(d, h, lab, True, seed + 1000 * (r + 1) + k, f"c{k}")
+                                              for k, d in enumerate(designs)], f"the plan replicated under {h.name}")
+            for h in hypotheses
+        ]  # fmt: skip
+        for a, b in pairs(hypotheses):
+            for x, y in ((a, b), (b, a)):
+                own = distance(rival_linearization(noisy[x], noisy[x], hypotheses[x], free, evaluator), every)
+                rival = distance(rival_linearization(noisy[x], noisy[x], hypotheses[y], free, evaluator), every)
+                out.setdefault(direction(hypotheses, x, y), []).append(rival - own)
+    return out
+
+
+def direction(hypotheses, x: int, y: int) -> str:
+    return f"{hypotheses[x].name}'s trials, {hypotheses[y].name} fitted"
+
+
+def predicted_separation(hypotheses, lins, indices) -> dict[str, float]:
+    """Per direction, the distance the plan predicts over its trials `indices` (separation.distance)."""
+    return {
+        direction(hypotheses, x, y): distance(lins[x, y], indices)
+        for a, b in pairs(hypotheses)
+        for x, y in ((a, b), (b, a))
+    }
+
+
+def check_lines(predicted: dict[str, float], realized: dict[str, list[float]]) -> list[str]:
+    """One line per direction: predicted, realized (mean and each replicate)."""
+    return [
+        f"  {name}: predicted {predicted[name]:.3g}, realized {np.mean(values):.3g} "
+        f"({', '.join(f'{v:.3g}' for v in values)})"
+        for name, values in realized.items()
+    ]
