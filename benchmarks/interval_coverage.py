@@ -48,9 +48,8 @@ PAGE, BLOCK, WRITER = (
 ROWS = rows_file("interval_coverage")
 CHOSE = range(0, 10)  # seeds kept for choosing rules; the table reports seeds from 10 on
 METHODS = ("program", "avs", "diagnose")
-# Rows made before this version are tabled apart as "<method>, before": identify's intervals without the jackknife
-# over failed joints (sysid.stats.uncertainty), the diagnosis without its friction search judged on the trials with
-# no failed joint (diagnose.loop.worse_without_failures).
+# identify's rows made before this version are tabled apart as "<method>, before": its intervals without the
+# jackknife over failed joints (sysid.stats.uncertainty).
 VERSION = "2026-12-02"
 LAW = "+failed-joint-law"  # a diagnosis with the failed joints' law fitted as nuisance (diagnose's failed_joint_law)
 HIDDEN = ("none", "wheel_toe")
@@ -213,15 +212,19 @@ def mu_lat_kept(row: dict) -> float | None:
 
 
 def method_of(row: dict) -> str:
-    """The row's method, and ", before" for a row made before VERSION, ", failed-joint law" for a diagnosis with
-    the failed joints' law fitted (rows of the day's first runs name their version "rule")."""
+    """The row's method, with its variant where it has one: ", before" for identify's rows made before VERSION, ",
+    failed-joint law" for a diagnosis with the failed joints' law fitted, a row's own "variant" (rows of a rule that
+    did not land, kept as measured). The default diagnosis decides today as before VERSION: its rows of any version."""
+    if row.get("variant"):
+        return f"{row['method']}, {row['variant']}"
     version = row.get("version", row.get("rule"))
     if version == VERSION + LAW:
         return row["method"] + ", failed-joint law"
-    return row["method"] if version == VERSION else row["method"] + ", before"
+    return row["method"] if version == VERSION or row["method"] == "diagnose" else row["method"] + ", before"
 
 
-TABLED = [m + suffix for m in METHODS for suffix in ("", ", failed-joint law", ", before")]
+NOT_LANDED = "search judged without failures (not landed)"  # the rows' variant: docs/findings.md (34)
+TABLED = [m + s for m in METHODS for s in ("", ", failed-joint law", ", before")] + [f"diagnose, {NOT_LANDED}"]
 
 
 def table(rows: list) -> str:

@@ -70,7 +70,8 @@ def diagnose(
     linearize.PAIRED_DRAWS of six, docs/diagnosis.md); measured again in full there too ("full"); or the start's
     kept ("start"). The others are judged against the default campaign by campaign (benchmarks/paper_rates.py
     --variant). `failed_joint_law`: the failed joints' dry torque and compliant stop (FAILED_JOINT_LAW) fitted in
-    every fit as nuisance, not offered as candidates."""
+    every fit as nuisance, not offered as candidates, and a friction search judged on the trials with no failed joint
+    (worse_without_failures)."""
     started = time.perf_counter()
     if start_rates not in START_MODES:
         raise ValueError(f"start_rates must be one of {START_MODES}, got {start_rates!r}")
@@ -191,15 +192,18 @@ def secant_refined(lin: Linearization, names: list[str], candidate: str, evaluat
     return moved(lin, own, fit(lin, own).values, evaluator, what=what)
 
 
-def far_friction(lin, names, nuisance, replayed, evaluator, thresholds, samples) -> tuple[Friction | None, str]:
+def far_friction(
+    lin, names, nuisance, replayed, evaluator, thresholds, samples, judged_without_failures=False
+) -> tuple[Friction | None, str]:
     """(the searched friction where it explains the start's miss better than any one candidate does, else None; what
     was decided, in words). A miss beyond the noise is a far friction or a missing effect: the search alone lets the
     friction absorb an effect (seen: a hidden 1.5 deg toe taken up by mu_lat 1.5 -> 2.25, c_joint halved), so the two
     compete on their likelihood, each charged 2 per coordinate it moves (AIC). The friction is judged with the
     replay's own error measured again there (`samples` draws a trial): the search's cost keeps the start's, which at
     a far start misjudges it (seen: 6.6e5 with the start's, 6.4e3 measured there); its input noise moves the trials'
-    weights (seen: the J7 trials' 0.55 -> 0.09 at mu_lat 0.75), which the likelihood's spread term prices. A search
-    that fits the trials with no failed joint worse is never kept (worse_without_failures): held-out cases judge it."""
+    weights (seen: the J7 trials' 0.55 -> 0.09 at mu_lat 0.75), which the likelihood's spread term prices. With
+    `judged_without_failures` (the failed joints' law fitted as nuisance), a search that fits the trials with no
+    failed joint worse is not kept (worse_without_failures)."""
     found = searched_friction(lin, names, evaluator)
     if found is None:
         return None, f"searched ({', '.join(names)}); nothing lowered the sum of squares"
@@ -207,7 +211,7 @@ def far_friction(lin, names, nuisance, replayed, evaluator, thresholds, samples)
     steps = ", ".join(f"{n} {getattr(lin.friction, n):.3g} -> {getattr(found, n):.3g}" for n in moved_names)
     there = relinearize(lin, found, lin.effects, evaluator, "residuals at the searched friction", samples=samples)
     cost = there.neg2_log_likelihood(there.r0)
-    if worse := worse_without_failures(lin, there, nuisance, len(moved_names)):
+    if judged_without_failures and (worse := worse_without_failures(lin, there, nuisance, len(moved_names))):
         return None, (
             f"searched ({steps}: -2 log likelihood {cost:.4g}), not kept: the trials with no failed joint fit it "
             f"worse ({worse[0]:.4g} -> {worse[1]:.4g}), so the failed joints' trials asked for it"
@@ -285,7 +289,7 @@ class _Search:
             "the start's replays are within the noise"
         )  # fmt: skip
         if needs_friction_search(lin, names, free, thresholds):
-            found, note = far_friction(lin, names, nuisance, replayed, evaluator, thresholds, samples)
+            found, note = far_friction(lin, names, nuisance, replayed, evaluator, thresholds, samples, bool(law))
         if found is not None:  # linearized again where the search went, and judged there
             lin = linearize(lin.trials, found, lin.effects, replayed + list(law), evaluator,
                             input_noise_samples=samples, held=held, starts=bool(nuisance))  # fmt: skip
