@@ -261,10 +261,10 @@ def table(rows: list) -> str:
             )
             before_text = f"{before}, {before_held}" if not method.startswith("diagnose") else "-"
             timed = [r["wall_s"] for r in mine if not r.get("shared_cpu")] or [math.nan]  # alone on the machine
-            minutes = float(np.median(timed)) / 60
+            minutes = f"{float(np.median(timed)) / 60:.1f}" if not math.isnan(timed[0]) else "- (shared CPU)"
             lines.append(
                 f"| {method} | {hidden} | {len(mine)} | {before_text} | {given}, {held} | {close} | "
-                f"{toe_text} | {minutes:.1f} |"
+                f"{toe_text} | {minutes} |"
             )
     return "\n".join(lines)
 
