@@ -12,7 +12,7 @@ from pydrake.common.yaml import yaml_load_typed
 from rc1_drake.cli import main
 from rc1_drake.config import JOINT_LIMIT_DEG, Friction, Rc1Error, Scenario
 from rc1_drake.design import Hypothesis, Lab, TrialDesign, load_lab, open_hypotheses
-from rc1_drake.design.lab import infeasible, joint_speed_deg_s, off_the_floor, sampled_designs
+from rc1_drake.design.lab import MAX_FREQUENCY_DEG_S, infeasible, joint_speed_deg_s, off_the_floor, sampled_designs
 from rc1_drake.design.separation import distance, rival_linearization, synthesized_trial, told_apart
 from rc1_drake.diagnose.decide import NOT_DETECTABLE
 from rc1_drake.diagnose.fit import fit
@@ -30,7 +30,7 @@ def test_a_design_the_robot_or_the_lab_cannot_run_says_why_and_drawn_designs_can
     assert "outside the lab's" in infeasible(TrialDesign(seconds=20.0), lab)
     for d in sampled_designs(lab, 40, np.random.default_rng(1)):
         assert d.amplitude_deg + abs(d.bias_deg) <= JOINT_LIMIT_DEG + 1e-9
-        assert joint_speed_deg_s(d) <= SERVO_SPEED_LIMIT_DEG_S + 1e-9
+        assert joint_speed_deg_s(d) <= SERVO_SPEED_LIMIT_DEG_S + 1e-9 and d.frequency_deg_s <= MAX_FREQUENCY_DEG_S
         assert list(d.failed_joints) in lab.failures and lab.min_seconds <= d.seconds <= lab.max_seconds
 
 

@@ -21,6 +21,8 @@ def realized_separation(designs, hypotheses, lab, free, evaluator, *, replicates
                                               for k, d in enumerate(designs)], f"the plan replicated under {h.name}")
             for h in hypotheses
         ]  # fmt: skip
+        if any(isinstance(t, str) for trials in noisy for t in trials):
+            continue  # a replicate whose run fails the loader's checks (separation.synthesized_trial) is not drawn
         for a, b in pairs(hypotheses):
             for x, y in ((a, b), (b, a)):
                 own = distance(rival_linearization(noisy[x], noisy[x], hypotheses[x], free, evaluator), every)

@@ -13,6 +13,9 @@ from ..config import JOINT_LIMIT_DEG, NUM_JOINTS, Failure, Gait, Rc1Error, Scena
 from ..synthesize import SERVO_SPEED_LIMIT_DEG_S, Case
 
 MIN_TURNING_RADIUS_M = 0.6  # RC1's tightest turn (paper section 4)
+# Twice the paper's gait frequency: a drawn gait at 382 deg/s (21 deg, within the servos' speed) made data no servo
+# could (a joint jumping 9 deg in 10 ms), refused by the loader.
+MAX_FREQUENCY_DEG_S = 280.0
 
 
 @dataclasses.dataclass
@@ -135,11 +138,12 @@ def off_the_floor(t: np.ndarray, xy: np.ndarray, yaw_rate: np.ndarray, lab: Lab)
 
 def sampled_designs(lab: Lab, count: int, rng: np.random.Generator) -> list[TrialDesign]:
     """`count` feasible designs drawn over the lab's failures, amplitudes 15-38 deg, frequencies up to the servos'
-    speed, phase steps 20-60 deg, biases within the joints' limit (both ways), durations in the lab's range."""
+    speed and at most MAX_FREQUENCY_DEG_S, phase steps 20-60 deg, biases within the joints' limit (both ways),
+    durations in the lab's range."""
     out: list[TrialDesign] = []
     while len(out) < count:
         amplitude = float(rng.uniform(15.0, JOINT_LIMIT_DEG))
-        fastest = SERVO_SPEED_LIMIT_DEG_S / math.radians(amplitude)
+        fastest = min(SERVO_SPEED_LIMIT_DEG_S / math.radians(amplitude), MAX_FREQUENCY_DEG_S)
         design = TrialDesign(
             failed_joints=tuple(lab.failures[int(rng.integers(len(lab.failures)))]),
             amplitude_deg=round(amplitude, 1),

@@ -141,7 +141,7 @@ def design_trials(*, diagnosis: dict, lab: Lab | None = None, budget: int = 4, c
     with make_executor(workers=workers or os.cpu_count()) as executor:
         evaluator = Evaluator(executor, progress)
         made = {noisy: [_synthesized(designs, h, lab, noisy, seed, evaluator) for h in hypotheses] for noisy in (0, 1)}
-        dropped = _dropped(designs, made[0], lab)
+        dropped = _dropped(designs, made[0] + made[1], lab)
         keep = [k for k, d in enumerate(designs) if d.label() not in dropped]
         if not keep:
             raise Rc1Error("design: no candidate design stays on the lab's floor")
@@ -173,7 +173,8 @@ def _dropped(designs, made, lab) -> dict[str, str]:
     out = {}
     for k, d in enumerate(designs):
         for trials in made:
-            if why := off_the_floor(trials[k].t, trials[k].camera[:, :2], trials[k].head_yaw_rate, lab):
+            t = trials[k]
+            if why := t if isinstance(t, str) else off_the_floor(t.t, t.camera[:, :2], t.head_yaw_rate, lab):
                 out[d.label()] = why
     return out
 

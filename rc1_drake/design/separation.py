@@ -15,6 +15,7 @@ import math
 import tempfile
 from pathlib import Path
 
+from ..config import Rc1Error
 from ..diagnose.coordinates import START
 from ..diagnose.fit import fit
 from ..diagnose.linearize import Linearization, linearize, replay_errors, trial_weights
@@ -29,7 +30,9 @@ BOOTSTRAP_DRAWS = 3  # the replay's own error per designed trial: fewer than the
 def synthesized_trial(design: TrialDesign, hypothesis: Hypothesis, lab: Lab, noisy: bool, seed: int, label: str):
     """`design` run by `hypothesis` (this model, through its servos, from the origin heading +x), measured at the
     lab's sample period with no sensor noise (`noisy`: with the lab's potentiometer noise, the other sensors' at
-    their defaults), its camera always seeing the head; the trial named `label`."""
+    their defaults), its camera always seeing the head; the trial named `label`. Where the run's measurements fail
+    the loader's checks (a joint that jumps faster than a servo moves: the servos cannot follow that gait), why, in
+    place of the trial."""
     noise = Noise(potentiometer_deg=lab.potentiometer_deg) if noisy else Noise().scaled(0.0)
     with tempfile.TemporaryDirectory() as tmp:
         synthesize_campaign(
@@ -43,7 +46,10 @@ def synthesized_trial(design: TrialDesign, hypothesis: Hypothesis, lab: Lab, noi
             sample_period_s=lab.sample_period_s,
             seed=seed,
         )
-        (trial,) = load_campaign(Path(tmp)).trials
+        try:
+            (trial,) = load_campaign(Path(tmp)).trials
+        except Rc1Error as error:
+            return "its run fails the measurement checks: " + str(error).split(": ", 1)[-1]
     return dataclasses.replace(trial, trial_id=label)
 
 
