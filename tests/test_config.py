@@ -75,3 +75,15 @@ def test_a_model_is_taken_by_name_from_a_file_of_named_scenarios(tmp_path):
     assert load_model_file(plain).friction.mu_lat == 2.0 and load_model_file(plain).servo is None
     with pytest.raises(Rc1Error, match="a model file, not a file of named scenarios: give it without ':x'"):
         load_model_file(f"{plain}:x")
+
+
+def test_every_subpackage_is_installed():
+    """pyproject's explicit package list names every folder of rc1_drake with an __init__.py (a package left out
+    imports from a checkout and is missing from an installed wheel)."""
+    import tomllib
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    listed = set(tomllib.loads((root / "pyproject.toml").read_text())["tool"]["setuptools"]["packages"])
+    found = {".".join(p.parent.relative_to(root).parts) for p in (root / "rc1_drake").rglob("__init__.py")}
+    assert found == listed, (found - listed, listed - found)
