@@ -93,6 +93,8 @@ def test_the_open_hypotheses_are_read_from_the_diagnosis_for_each_verdict():
     assert nothing[1].effects["ground_slope_deg"] == pytest.approx(2.5) and nothing[0].effects == {}
     with pytest.raises(Rc1Error, match="leaves one hypothesis"):
         open_hypotheses(_diagnosis("no_missing_effect", []))
+    with pytest.raises(Rc1Error, match="no round accepted wheel_toe"):
+        open_hypotheses(dict(found, rounds=[dict(found["rounds"][0], accepted=None)]))
     with pytest.raises(Rc1Error, match="not a diagnosis's JSON"):
         open_hypotheses({"verdict": "ambiguous"})
 

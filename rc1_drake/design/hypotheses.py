@@ -57,7 +57,9 @@ def open_hypotheses(diagnosis: dict, where: str = "diagnosis") -> list[Hypothesi
         ]
     elif verdict == "effect_found":
         accepted = diagnosis["accepted_effects"][-1]
-        round_of = next(r for r in rounds if r["accepted"] == accepted)
+        round_of = next((r for r in rounds if r["accepted"] == accepted), None)
+        if round_of is None:
+            raise Rc1Error(f"{where}: no round accepted {accepted}, which the verdict names")
         runner = next((c for c in round_of["candidates"] if c["name"] != accepted and c["status"] != NOT_DETECTABLE
                        and c["name"] not in diagnosis["accepted_effects"]), None)  # fmt: skip
         out = [Hypothesis(accepted, friction, effects, (accepted,))]
