@@ -217,7 +217,7 @@ def method_of(row: dict) -> str:
     did not land, kept as measured). The default diagnosis decides today as before VERSION: its rows of any version."""
     if row.get("variant"):
         return f"{row['method']}, {row['variant']}"
-    version = row.get("version", row.get("rule"))
+    version = row.get("version")
     if version == VERSION + LAW:
         return row["method"] + ", failed-joint law"
     return row["method"] if version == VERSION or row["method"] == "diagnose" else row["method"] + ", before"
@@ -260,8 +260,8 @@ def table(rows: list) -> str:
                 else f"{len(found)} of {len(mine)}, {inside}"
             )
             before_text = f"{before}, {before_held}" if not method.startswith("diagnose") else "-"
-            timed = [r["wall_s"] for r in mine if not r.get("shared_cpu")] or [math.nan]  # alone on the machine
-            minutes = f"{float(np.median(timed)) / 60:.1f}" if not math.isnan(timed[0]) else "- (shared CPU)"
+            timed = [r["wall_s"] for r in mine if not r.get("shared_cpu")]  # alone on the machine
+            minutes = f"{float(np.median(timed)) / 60:.1f}" if timed else "- (shared CPU)"
             lines.append(
                 f"| {method} | {hidden} | {len(mine)} | {before_text} | {given}, {held} | {close} | "
                 f"{toe_text} | {minutes} |"

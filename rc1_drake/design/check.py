@@ -23,11 +23,12 @@ def realized_separation(designs, hypotheses, lab, free, evaluator, *, replicates
         ]  # fmt: skip
         if any(isinstance(t, str) for trials in noisy for t in trials):
             continue  # a replicate whose run fails the loader's checks (separation.synthesized_trial) is not drawn
+        own = [distance(rival_linearization(noisy[x], noisy[x], h, free, evaluator), every)
+               for x, h in enumerate(hypotheses)]  # fmt: skip
         for a, b in pairs(hypotheses):
             for x, y in ((a, b), (b, a)):
-                own = distance(rival_linearization(noisy[x], noisy[x], hypotheses[x], free, evaluator), every)
                 rival = distance(rival_linearization(noisy[x], noisy[x], hypotheses[y], free, evaluator), every)
-                out.setdefault(direction(hypotheses, x, y), []).append(rival - own)
+                out.setdefault(direction(hypotheses, x, y), []).append(rival - own[x])
     return out
 
 

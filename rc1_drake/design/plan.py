@@ -19,10 +19,10 @@ import numpy as np
 from ..config import Rc1Error
 from ..executor import make_executor
 from ..sysid.evaluate import Evaluator
-from .check import check_lines, predicted_separation, realized_separation
+from .check import check_lines, direction, predicted_separation, realized_separation
 from .hypotheses import Hypothesis, open_hypotheses, pairs
 from .lab import Lab, TrialDesign, off_the_floor, sampled_designs
-from .separation import distance, rival_linearization, synthesized_trial, told_apart
+from .separation import rival_linearization, synthesized_trial, told_apart
 
 # The paper's cases and the probe study's kinds among the candidates: a design has to beat them to be chosen.
 PAPER_KINDS = [
@@ -211,9 +211,10 @@ def load_plan(folder) -> tuple[list[TrialDesign], Lab]:
 
 def _pair_distances(hypotheses, lins, indices) -> dict[str, float]:
     """Per pair "a | b": the smaller of a's trials' distance from b's fit and b's trials' from a's."""
+    both = predicted_separation(hypotheses, lins, indices)
     return {
         f"{hypotheses[a].name} | {hypotheses[b].name}": min(
-            distance(lins[a, b], indices), distance(lins[b, a], indices)
+            both[direction(hypotheses, a, b)], both[direction(hypotheses, b, a)]
         )
         for a, b in pairs(hypotheses)
     }

@@ -16,7 +16,6 @@ import tempfile
 from pathlib import Path
 
 from ..config import Rc1Error
-from ..diagnose.coordinates import START
 from ..diagnose.fit import fit
 from ..diagnose.linearize import Linearization, linearize, replay_errors, trial_weights
 from ..measurements import load_campaign
@@ -106,7 +105,3 @@ def told_apart(d: float) -> float:
     """The probability that a likelihood-ratio choice between two simple hypotheses d apart (squared, in the
     noise's units) picks the true one: Phi(sqrt(d) / 2)."""
     return 0.5 * (1.0 + math.erf(math.sqrt(max(d, 0.0)) / (2.0 * math.sqrt(2.0))))
-
-
-def start_names(lin: Linearization) -> list[str]:
-    return [c.name for c in lin.coordinates if c.owner == START]

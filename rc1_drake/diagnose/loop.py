@@ -266,7 +266,8 @@ class _Search:
         """The search at the start: the friction these data identify (where none is at the start and its replays
         miss by more than the noise, judged again where a search of the friction goes, if the friction explains that
         miss better than a candidate does: needs_friction_search, far_friction), the trials' starts fitted with it.
-        `law`: effects whose coordinates are in every fit from the first round's refit on (FAILED_JOINT_LAW)."""
+        `law`: effects whose coordinates are polished here, before the friction is judged, and in every fit after
+        (FAILED_JOINT_LAW)."""
         nuisance = [c.name for c in lin.coordinates if c.owner == START]
         names = [n for n in FRICTION_NAMES if n not in held]
         free = screen_friction(lin, names, nuisance=nuisance)

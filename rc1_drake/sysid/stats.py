@@ -145,7 +145,7 @@ def uncertainty(
     standard error under `max_relative_error`), the larger of that and the linearized trial jackknife in every
     direction (trial_jackknife, larger_covariance), as the diagnosis's fit takes it, and of the jackknife over the
     sets of failed joints (`failure_groups`: no failure, J7, J13): trials that share a failed joint share its
-    mis-modelled law, a bias the trial jackknife cannot see (findings (31)). The jackknife's steps move only
+    mis-modelled law, a bias the trial jackknife cannot see (findings (34)). The jackknife's steps move only
     those: a direction the data do not see would swing every leave-one-out step along it, and through the
     correlations widen what the data do see. A parameter is identifiable when its relative standard error is below
     `max_relative_error`. Costs one residual evaluation per free parameter, plus one.
