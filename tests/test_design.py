@@ -167,3 +167,7 @@ def test_rc1_design_writes_a_plan_a_lab_can_run(tmp_path, capsys):
     assert "joint numbers are 1..13" in capsys.readouterr().err
     assert main(["synthesize", str(tmp_path / "x"), "--plan", str(tmp_path)]) == 2
     assert "not a plan folder" in capsys.readouterr().err
+    lab.write_text("failures: [[]]\n")
+    diagnosis.write_text("{")
+    assert main(argv) == 2
+    assert f"{diagnosis}: not a diagnosis's JSON" in capsys.readouterr().err
