@@ -134,7 +134,9 @@ CELLS = [
         {diagnosis.REFERENCE[e][0]: diagnosis.REFERENCE[e][1] for e in ("wheel_toe", "joint_coulomb_friction")},
         ("wheel_toe", "joint_coulomb_friction"),
     ),
-    Cell("compliant_stop k 20 (outside)", "drake", {"stop_k_Nm_per_rad": 20.0, "stop_d_Nm_s_per_rad": 0.1}, None),
+    Cell(
+        "compliant_stop k 20 (outside)", "drake", {"stop_compliance_rad_per_Nm": 0.05, "stop_d_Nm_s_per_rad": 0.1}, None
+    ),
     Cell("head_cantilever 1 (outside)", "drake", {"head_on_wheel2": 1.0}, None),
     _library("potentiometer_offset_j9", 1.0, "reference"),
     _library("wheel_toe", 0.5, "reference"),

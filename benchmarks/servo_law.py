@@ -41,7 +41,7 @@ SETTINGS = {
 }
 COMBOS = {
     "cantilever": _s(effects={"head_on_wheel2": 1.0}),
-    "stop20": _s(effects={"stop_k_Nm_per_rad": 20.0}),
+    "stop20": _s(effects={"stop_compliance_rad_per_Nm": 0.05}),
     "mu_lat1": _s(friction={"mu_lat": 1.0}),
     "mu_lat2.5": _s(friction={"mu_lat": 2.5}),
     "c_lat2": _s(friction={"c_lat": 2.0}),

@@ -8,8 +8,9 @@ The failure switch (servo.FailureSwitch) acts on a context: it sets a failed joi
 zero and turns its joint friction on, at t = 0 or, for a later failure, between two time steps.
 
 What the Diagram fixes at build time (gait amplitudes, frequencies and phases, servo gains, time
-step, log period) is `build_key(scenario)`; everything else (friction coefficients, failures, bias,
-start pose) is set per run in the context by `configure_context`, so batch work reuses one Diagram.
+step, log period, the joints whose stiff limit a compliant stop replaces) is `build_key(scenario)`;
+everything else (friction coefficients, failures, bias, start pose) is set per run in the context by
+`configure_context`, so batch work reuses one Diagram.
 """
 
 from __future__ import annotations
@@ -29,7 +30,7 @@ from pydrake.systems.primitives import (
 )
 
 from .config import Scenario
-from .effects import commanded_gait
+from .effects import commanded_gait, stop_backstops
 from .friction import FrictionForces
 from .gait import add_gait_source, serpenoid_parameters
 from .model import RC1Plant, add_rc1_plant
@@ -68,6 +69,7 @@ def build_key(scenario: Scenario, joint_reference=None) -> tuple:
         n.time_step_s,
         n.log_period_s,
         dataclasses.astuple(scenario.heading_control),
+        stop_backstops(scenario.effects, scenario.failures),
     )
 
 
@@ -142,7 +144,11 @@ def build_diagram(scenario: Scenario, *, joint_reference=None) -> RC1Diagram:
     """The Diagram for `scenario`; with `joint_reference` (a Drake trajectory of the 13 joint angles,
     e.g. measured ones) the servos follow it instead of the serpenoid."""
     builder = DiagramBuilder()
-    rc1 = add_rc1_plant(builder, time_step=scenario.numerics.time_step_s)
+    rc1 = add_rc1_plant(
+        builder,
+        time_step=scenario.numerics.time_step_s,
+        backstops=stop_backstops(scenario.effects, scenario.failures),
+    )
     plant = rc1.plant
     if joint_reference is None:
         feedback = add_heading_control(builder, plant, scenario) if scenario.heading_control.active else None

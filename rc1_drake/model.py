@@ -10,6 +10,7 @@ from pydrake.multibody.plant import AddMultibodyPlant, MultibodyPlantConfig
 from pydrake.multibody.tree import PlanarJoint
 
 from .config import NUM_JOINTS, REPO_ROOT
+from .effects import with_backstops
 from .kinematics import ChainGeometry
 
 MODEL_PATH = REPO_ROOT / "models" / "rc1.sdf"
@@ -27,11 +28,13 @@ class RC1Plant:
     effort_limit: np.ndarray  # (13,) N m, from the SDF
 
 
-def add_rc1_plant(builder, *, time_step: float, model_path=MODEL_PATH) -> RC1Plant:
+def add_rc1_plant(builder, *, time_step: float, model_path=MODEL_PATH, backstops=()) -> RC1Plant:
     """Add the discrete (SAP) plant of RC1, moving in the world's horizontal plane.
 
     A discrete plant enforces the joint limits (+-38 deg) as constraints: this is the restoring
-    torque at the limits of paper section 3, and it keeps a failed joint inside them.
+    torque at the limits of paper section 3, and it keeps a failed joint inside them. The joints in
+    `backstops` (1-based; effects.stop_backstops: a compliant stop in place of their limit) get
+    effects.with_backstops' wider limits, which a Drake plant takes only before it is finalized.
     """
     plant, scene_graph = AddMultibodyPlant(
         MultibodyPlantConfig(time_step=time_step, discrete_contact_approximation="sap"), builder
@@ -45,6 +48,13 @@ def add_rc1_plant(builder, *, time_step: float, model_path=MODEL_PATH) -> RC1Pla
         actuator.set_effort_limit(np.inf)
     head = plant.GetBodyByName("module_1", instance)
     base = plant.AddJoint(PlanarJoint("base", plant.world_frame(), head.body_frame(), np.zeros(3)))
+    if backstops:
+        limited = [plant.GetJointByName(f"joint_{i}", instance) for i in range(1, NUM_JOINTS + 1)]
+        lower, upper = with_backstops(
+            [j.position_lower_limits()[0] for j in limited], [j.position_upper_limits()[0] for j in limited], backstops
+        )
+        for i in backstops:
+            limited[i - 1].set_position_limits([lower[i - 1]], [upper[i - 1]])
     plant.Finalize()
     plant.set_name("rc1_plant")
     joints = tuple(plant.GetJointByName(f"joint_{i}", instance) for i in range(1, NUM_JOINTS + 1))

@@ -33,9 +33,11 @@ from .library import (
     shifted,
     validate_effects,
 )
+from .physical import STOP_BACKSTOP_DEG, stop_backstops, with_backstops
 
 __all__ = [
     "CANDIDATE_GROUPS",
+    "STOP_BACKSTOP_DEG",
     "LIBRARY",
     "Effect",
     "EffectParameter",
@@ -55,5 +57,7 @@ __all__ = [
     "register",
     "sensor_model",
     "shifted",
+    "stop_backstops",
     "validate_effects",
+    "with_backstops",
 ]

@@ -87,25 +87,48 @@ class JointCoulombFriction(Effect):
 
 
 class CompliantStop(Effect):
-    """The paper's joint-limit PD (section 3) in a failed joint: past the onset angle, a restoring torque
-    -k (|q| - onset) sgn(q) - d q_dot (friction.compliant_stop), before the plant's stiff +-38 deg limit. The onset
-    sits inside the limit so that the PD, not the stiff limit, is what a swinging joint meets: a 0.5 N m load
-    compresses a 20 N m/rad stop by 1.4 deg, within the default 5 deg onset margin."""
+    """The paper's joint-limit PD (section 3) in a failed joint, in place of the plant's stiff +-38 deg limit:
+    past the onset angle (the limit, less a margin), a restoring torque -k (|q| - onset) sgn(q) - d q_dot
+    (friction.compliant_stop), k = 1 / compliance. A back-driven servo's stop yields: the joint swings past 38 deg
+    as far as the load compresses it, to a stiff backstop where the modules meet (STOP_BACKSTOP_DEG). Fitted as
+    compliance, so that 0 is the paper's stiff limit and the model is continuous there (nested models)."""
 
     name = "compliant_stop"
-    summary = "a failed joint meets a PD stop (stiffness, damping) from an onset inside its +-38 deg limit"
+    summary = "a failed joint meets a PD stop (compliance, damping) at +-38 deg in place of the stiff limit"
     failed_joints_only = True
     default_candidate = False
-    differentiable = False  # the tangent model (engine/tangent.py) does not carry it
+    differentiable = False  # its own columns by differences (k = 1 / compliance); the tangent has its torque's
     parameters = (
-        EffectParameter("stop_k_Nm_per_rad", 0.0, 200.0, probe=5.0),
+        EffectParameter("stop_compliance_rad_per_Nm", 0.0, 0.2, probe=0.01),
         EffectParameter("stop_d_Nm_s_per_rad", 0.0, 2.0, default=0.05),
-        EffectParameter("stop_margin_deg", 0.0, 20.0, fitted=False, default=5.0),
+        EffectParameter("stop_margin_deg", 0.0, 20.0, fitted=False, default=0.0),
     )
 
     def configure(self, setup, values):
-        setup.stop_k, setup.stop_d = values["stop_k_Nm_per_rad"], values["stop_d_Nm_s_per_rad"]
+        compliance = values["stop_compliance_rad_per_Nm"]
+        setup.stop_k = 1.0 / compliance if compliance > 0.0 else 0.0
+        setup.stop_d = values["stop_d_Nm_s_per_rad"]
         setup.stop_onset_rad = math.radians(JOINT_LIMIT_DEG - values["stop_margin_deg"])
+
+
+STOP_BACKSTOP_DEG = 90.0  # two modules side by side: where a joint past its compliant stop meets a rigid one
+
+
+def stop_backstops(effects: dict, failures) -> tuple:
+    """The joints (1-based) whose stiff +-38 deg limit a compliant stop replaces by the backstop: the free failed
+    joints, when `effects` give the stop a compliance. Fixed for a run (a Drake plant's limits are fixed when it
+    is built), so a joint that fails later has its backstop from the start; its servo holds it within 38 deg."""
+    if not effects.get("stop_compliance_rad_per_Nm", 0.0) > 0.0:
+        return ()
+    return tuple(sorted({f.joint for f in failures if f.mode == "free"}))
+
+
+def with_backstops(lower, upper, joints) -> tuple:
+    """The joint limits (rad, (13,) each) with each of `joints` (1-based) at +-STOP_BACKSTOP_DEG."""
+    lower, upper = np.array(lower, dtype=float), np.array(upper, dtype=float)
+    for joint in joints:
+        lower[joint - 1], upper[joint - 1] = -math.radians(STOP_BACKSTOP_DEG), math.radians(STOP_BACKSTOP_DEG)
+    return lower, upper
 
 
 class HeadCantilever(Effect):

@@ -14,7 +14,16 @@ import numpy as np
 
 from ..config import FRICTION_NAMES, NUM_JOINTS, Rc1Error, Scenario
 from ..diagram import build_key
-from ..effects import LIBRARY, commanded_gait, coordinate_owner, effect_values, model_setup, shifted
+from ..effects import (
+    LIBRARY,
+    commanded_gait,
+    coordinate_owner,
+    effect_values,
+    model_setup,
+    shifted,
+    stop_backstops,
+    with_backstops,
+)
 from ..friction import FAILED, FREE, LOCKED, friction_parameters
 from ..gait import serpenoid_parameters
 from ..protocol import Run, Session, initial_state
@@ -260,8 +269,9 @@ class _CompiledRun:
             numbers.masses(setup.payload_module, setup.payload_kg),
             numbers.central_yaw_inertia,
             numbers.com,
-            numbers.lower_limit,
-            numbers.upper_limit,
+            *with_backstops(
+                numbers.lower_limit, numbers.upper_limit, stop_backstops(scenario.effects, scenario.failures)
+            ),
             numbers.geometry.arrays,
         )
 

@@ -31,6 +31,9 @@ from ..friction import (
     MU_LONG,
     PER_WHEEL,
     SHAPE,
+    STOP_D,
+    STOP_K,
+    STOP_ONSET,
     assemble_step,
     cholesky,
     cholesky_solve,
@@ -270,6 +273,10 @@ def friction_tangent(
     out = np.empty((dx.shape[0], nv))
     moving = np.ascontiguousarray(dx[:, nv:]) @ np.ascontiguousarray(mass_matrix.T)  # M dv, every direction at once
     free_rate = np.where(free, v_plus[3:], 0.0)
+    k_stop, in_stop = params[STOP_K], np.zeros(nv)  # sgn(q) of the free joints past a compliant stop's onset
+    for j in range(3, nv):
+        if free[j - 3] and k_stop > 0.0 and abs(x[j]) > params[STOP_ONSET]:
+            in_stop[j] = np.sign(x[j])
     for d in range(dx.shape[0]):
         dp = dparams[d]
         dR = dmass_w[d] - moving[d] - dt * dother[d]
@@ -305,6 +312,11 @@ def friction_tangent(
             if free[j - 3]:
                 dF[j] -= dp[JOINT_COULOMB] * v_plus[j] / np.sqrt(v_plus[j] ** 2 + JOINT_EPS_RAD_S**2)
             dF[j] += linear[j] * (dcommand[d, j - 3] + kd * dx[d, nv + j])
+            if in_stop[j] != 0.0:  # -k (q - onset sgn q) - (d + dt k) v+ (friction.compliant_stop), at fixed v+
+                over = abs(x[j]) - params[STOP_ONSET]
+                dk = dp[STOP_K]
+                dF[j] -= k_stop * (dx[d, j] - in_stop[j] * dp[STOP_ONSET]) + in_stop[j] * over * dk
+                dF[j] -= (dp[STOP_D] + dt * dk) * v_plus[j]
         if sites:
             wheel_local_direction(dx[d], site_frame, joint_in_parent, joint_in_child, module, offset, unit, site_dlocal)
             dF += _discrepancy_tangent(site_local, site_dlocal, v_plus, dx[d], theta, dp[disc], free, site_terms)
