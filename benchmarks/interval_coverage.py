@@ -185,21 +185,33 @@ def holds(estimate: dict, truth: float, key: str = "se") -> bool | None:
     return abs(estimate["value"] - truth) <= Z95 * se
 
 
+def truths(row: dict) -> dict:
+    """The row's true values: the friction, the hidden effect, and the failed joint's law in the model's form (its
+    compliant stop and dry torque are reference.py's, effects.CompliantStop and JointCoulombFriction)."""
+    law = row["failed_joint"]
+    return row["truth"] | {
+        "joint_coulomb_Nm": law["dry_Nm"],
+        "stop_compliance_rad_per_Nm": 1.0 / law["stop_Nm_per_rad"],
+        "stop_d_Nm_s_per_rad": law["stop_Nm_s_per_rad"],
+    }
+
+
 def intervals(rows: list) -> tuple:
     """(reported intervals, of which hold the truth; the intervals the sandwich alone would have reported, before
     issue 67: a coefficient fitted whose sandwich standard error is under 30% of it, and of which hold it)."""
     given = held = before = before_held = 0
     for row in rows:
+        truth = truths(row)
         for name, estimate in row["estimates"].items():
-            if name not in row["truth"]:
+            if name not in truth:
                 continue
             if estimate["interval"]:
                 given += 1
-                held += bool(holds(estimate, row["truth"][name]))
+                held += bool(holds(estimate, truth[name]))
             noise = estimate.get("noise_se")
             if noise is not None and name not in row.get("held", []) and noise < 0.3 * abs(estimate["value"]):
                 before += 1
-                before_held += bool(holds(estimate, row["truth"][name], "noise_se"))
+                before_held += bool(holds(estimate, truth[name], "noise_se"))
     return given, held, before, before_held
 
 

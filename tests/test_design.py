@@ -171,3 +171,39 @@ def test_rc1_design_writes_a_plan_a_lab_can_run(tmp_path, capsys):
     diagnosis.write_text("{")
     assert main(argv) == 2
     assert f"{diagnosis}: not a diagnosis's JSON" in capsys.readouterr().err
+
+
+def test_the_design_loop_table_counts_a_loop_that_decided_early_as_it_ended(monkeypatch):
+    """A loop stops at the round whose verdict decides: after the rounds it did not need, it stands where it ended
+    (right after rounds 1 and 2 here); wrong, the intervals and what was added are read from its last round."""
+    import importlib
+    from pathlib import Path
+
+    monkeypatch.syspath_prepend(str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    design_loop = importlib.import_module("design_loop")
+
+    def scored(outcome, trials, coverage=()):
+        return {"outcome": outcome, "trials": trials, "floor_s": 10.0 * trials, "coverage": list(coverage)}
+
+    rows = [
+        {"cell": "wheel_toe x1", "seed": 102, "way": "designed", "budget": 4, "wall_s": 600.0,
+         "rounds": [scored("ambiguous", 8), scored("right", 12, [True])]},
+        {"cell": "wheel_toe x1", "seed": 103, "way": "designed", "budget": 4, "wall_s": 300.0,
+         "rounds": [scored("ambiguous", 8), scored("ambiguous", 12), scored("wrong", 16)]},
+        {"cell": "wheel_toe x1", "seed": 100, "way": "designed", "budget": 4, "wall_s": 1.0,  # chose: not reported
+         "rounds": [scored("right", 8)]},
+    ]  # fmt: skip
+    line = design_loop.table(rows, 2).splitlines()[-1]
+    assert line == "| wheel_toe x1 | designed | 2 | 0 | 1 | 1 | 1 | 1 of 1 | 6.0 | 60 | 7.5 |"
+
+
+def test_the_design_loop_benchmark_names_a_bad_cell_in_one_line_before_any_campaign(tmp_path):
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    script = Path(__file__).resolve().parents[1] / "benchmarks" / "design_loop.py"
+    proc = subprocess.run([sys.executable, str(script), "--cells", "none,gravity", "--out", str(tmp_path / "out")],
+                          capture_output=True, text=True, timeout=120)  # fmt: skip
+    assert proc.returncode != 0 and not (tmp_path / "out").exists()
+    assert proc.stderr.strip().splitlines() == ["design_loop: unknown cell or way gravity (cells: paper_rates.CELLS)"]

@@ -137,6 +137,15 @@ _FAKE_TRIAL = Trial(
 )
 
 
+def test_a_coordinate_no_residual_moves_has_an_unbounded_interval_not_a_zero_one():
+    rng = np.random.default_rng(1)
+    a = rng.normal(size=(4, 12))
+    lin = _linearization({"a": list(a), "b": list(np.zeros((4, 12)))}, list(-0.7 * a + 0.01 * rng.normal(size=(4, 12))))
+    fitted = fit(lin, ["a", "b"])
+    assert np.isfinite(fitted.standard_errors[0]) and fitted.standard_errors[0] > 0
+    assert fitted.standard_errors[1] == fitted.noise_standard_errors[1] == math.inf
+
+
 def test_fit_recovers_a_linear_truth_and_its_held_out_predictions_are_exact():
     rng = np.random.default_rng(1)
     a, b = rng.normal(size=(4, 12)), rng.normal(size=(4, 12))

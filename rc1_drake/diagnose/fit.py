@@ -175,6 +175,9 @@ def fit(lin: Linearization, names: list[str]) -> Fit:
         elif np.trace(jackknife) > np.trace(cov[block]):
             cov[block] = jackknife
     se = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    if physics:  # a coordinate no row moves (a stop's damping while the stop is off) is bounded by nothing
+        unseen = [physics[i] for i in np.flatnonzero(~x.any(axis=0))]
+        se[unseen] = noise_se[unseen] = math.inf
     m = len(e)
     aic = m * math.log(max(float(e @ e), 1e-300) / m) + 2 * len(names)
     return Fit(
