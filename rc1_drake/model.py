@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import numpy as np
 from pydrake.multibody.parsing import Parser
@@ -10,11 +11,20 @@ from pydrake.multibody.plant import AddMultibodyPlant, MultibodyPlantConfig
 from pydrake.multibody.tree import PlanarJoint
 
 from .config import NUM_JOINTS, REPO_ROOT
-from .effects import with_backstops
 from .kinematics import ChainGeometry
 
 MODEL_PATH = REPO_ROOT / "models" / "rc1.sdf"
 NUM_MODULES = NUM_JOINTS + 1
+STOP_BACKSTOP_DEG = 90.0  # two modules side by side: where a joint past its compliant stop meets a rigid one
+
+
+def with_backstops(lower, upper, joints) -> tuple:
+    """The joint limits (rad, (13,) each) with each of `joints` (1-based; effects.stop_backstops: a compliant stop
+    in place of their limit) at +-STOP_BACKSTOP_DEG."""
+    lower, upper = np.array(lower, dtype=float), np.array(upper, dtype=float)
+    for joint in joints:
+        lower[joint - 1], upper[joint - 1] = -math.radians(STOP_BACKSTOP_DEG), math.radians(STOP_BACKSTOP_DEG)
+    return lower, upper
 
 
 @dataclasses.dataclass(frozen=True)

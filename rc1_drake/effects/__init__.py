@@ -33,11 +33,10 @@ from .library import (
     shifted,
     validate_effects,
 )
-from .physical import STOP_BACKSTOP_DEG, stop_backstops, with_backstops
+from .physical import stop_backstops
 
 __all__ = [
     "CANDIDATE_GROUPS",
-    "STOP_BACKSTOP_DEG",
     "LIBRARY",
     "Effect",
     "EffectParameter",
@@ -59,5 +58,4 @@ __all__ = [
     "shifted",
     "stop_backstops",
     "validate_effects",
-    "with_backstops",
 ]

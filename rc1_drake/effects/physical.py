@@ -90,7 +90,7 @@ class CompliantStop(Effect):
     """The paper's joint-limit PD (section 3) in a failed joint, in place of the plant's stiff +-38 deg limit:
     past the onset angle (the limit, less a margin), a restoring torque -k (|q| - onset) sgn(q) - d q_dot
     (friction.compliant_stop), k = 1 / compliance. A back-driven servo's stop yields: the joint swings past 38 deg
-    as far as the load compresses it, to a stiff backstop where the modules meet (STOP_BACKSTOP_DEG). Fitted as
+    as far as the load compresses it, to a stiff backstop where the modules meet (model.STOP_BACKSTOP_DEG). Fitted as
     compliance, so that 0 is the paper's stiff limit and the model is continuous there (nested models)."""
 
     name = "compliant_stop"
@@ -111,24 +111,14 @@ class CompliantStop(Effect):
         setup.stop_onset_rad = math.radians(JOINT_LIMIT_DEG - values["stop_margin_deg"])
 
 
-STOP_BACKSTOP_DEG = 90.0  # two modules side by side: where a joint past its compliant stop meets a rigid one
-
-
 def stop_backstops(effects: dict, failures) -> tuple:
     """The joints (1-based) whose stiff +-38 deg limit a compliant stop replaces by the backstop: the free failed
-    joints, when `effects` give the stop a compliance. Fixed for a run (a Drake plant's limits are fixed when it
-    is built), so a joint that fails later has its backstop from the start; its servo holds it within 38 deg."""
+    joints, when `effects` give the stop a compliance (their limits: model.with_backstops). Fixed for a run (a Drake
+    plant's limits are fixed when it is built), so a joint that fails later has its backstop from the start; its
+    servo holds it within 38 deg."""
     if not effects.get("stop_compliance_rad_per_Nm", 0.0) > 0.0:
         return ()
     return tuple(sorted({f.joint for f in failures if f.mode == "free"}))
-
-
-def with_backstops(lower, upper, joints) -> tuple:
-    """The joint limits (rad, (13,) each) with each of `joints` (1-based) at +-STOP_BACKSTOP_DEG."""
-    lower, upper = np.array(lower, dtype=float), np.array(upper, dtype=float)
-    for joint in joints:
-        lower[joint - 1], upper[joint - 1] = -math.radians(STOP_BACKSTOP_DEG), math.radians(STOP_BACKSTOP_DEG)
-    return lower, upper
 
 
 class HeadCantilever(Effect):

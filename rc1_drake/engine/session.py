@@ -22,10 +22,10 @@ from ..effects import (
     model_setup,
     shifted,
     stop_backstops,
-    with_backstops,
 )
 from ..friction import FAILED, FREE, LOCKED, friction_parameters
 from ..gait import serpenoid_parameters
+from ..model import with_backstops
 from ..protocol import Run, Session, initial_state
 from .dynamics import plant_numbers
 from .run import CIRCLING, CROSSED, NOT_FINITE, REFERENCE, SERPENOID, advance_run
