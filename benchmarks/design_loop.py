@@ -23,7 +23,8 @@ union is diagnosed again; every replay is checkpointed per campaign, so the tria
 the model has not moved. Scored as the grid scores (paper_rates.classify): right, wrong (an effect accepted that is
 not hidden), and the accepted effect's intervals holding the truth, after each round. Seeds 100-101 (paper_rates.CHOSE)
 chose the grid's rules and are tabled apart. A loop's rounds stream to OUT as they end, and its row to
-benchmarks/rows/design_loop.jsonl when it is done: a rerun resumes. --markdown writes the table into docs/design.md.
+benchmarks/rows/design_loop.jsonl when it is done: a rerun resumes. --markdown writes the table into docs/design.md
+and its summary line into the README.
 """
 
 import argparse
@@ -48,6 +49,7 @@ from rc1_drake.measurements import load_campaign, merged_campaigns
 from rc1_drake.synthesize import Noise, synthesize_campaign
 
 PAGE, BLOCK, WRITER = REPO_ROOT / "docs" / "design.md", "design-loop-table", "benchmarks/design_loop.py --markdown"
+README, SUMMARY = REPO_ROOT / "README.md", "design-loop-summary"
 ROWS = rows_file("design_loop")
 WAYS = ("designed", "paper", "probe", "random")
 DECIDED = ("effect_found", "no_missing_effect")
@@ -213,6 +215,27 @@ def table(rows: list, rounds: int) -> str:
     return "\n".join(lines)
 
 
+def summary(rows: list, rounds: int) -> str:
+    """The README's line: per way, the loops right after the last round against those right at round 0."""
+    reported = [r for r in rows if r["seed"] not in grid.CHOSE]
+    seeds = sorted({r["seed"] for r in reported})
+    if not seeds:
+        return "The loop with designed trials (`benchmarks/design_loop.py`): not yet measured on reported seeds."
+    parts = []
+    for way in WAYS:
+        mine = [r for r in reported if r["way"] == way]
+        if mine:
+            right = sum(_by_round(r, rounds)["outcome"] == "right" for r in mine)
+            parts.append(f"{way} {right} of {len(mine)}")
+    start = sum(r["rounds"][0]["outcome"] == "right" for r in reported if r["way"] == reported[0]["way"])
+    cells = len({r["cell"] for r in reported})
+    return (
+        f"Closing the loop (`benchmarks/design_loop.py`, {cells} cells, seeds {seeds[0]}-{seeds[-1]}, up to {rounds}"
+        f" rounds of {reported[0]['budget']} trials): right after them, {', '.join(parts)} (right before them:"
+        f" {start} of {sum(r['way'] == reported[0]['way'] for r in reported)}); docs/design.md."
+    )
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--seeds", default="102-105")
@@ -232,6 +255,7 @@ def main():
         raise SystemExit(f"design_loop: unknown cell or way {', '.join(unknown)} (cells: paper_rates.CELLS)")
     if args.markdown:
         check_block(PAGE, BLOCK, WRITER)
+        check_block(README, SUMMARY, WRITER)
     args.out.mkdir(parents=True, exist_ok=True)
     done = {(r["cell"], r["seed"], r["way"]) for r in load_rows(ROWS) if r["budget"] == args.budget}
     jobs = [(c, s, w) for s in parse_seeds(args.seeds) for c in chosen for w in ways if (c, s, w) not in done]
@@ -246,6 +270,7 @@ def main():
     print(text)
     if args.markdown:
         write_block(PAGE, BLOCK, WRITER, text)
+        write_block(README, SUMMARY, WRITER, summary(load_rows(ROWS), args.rounds))
 
 
 if __name__ == "__main__":

@@ -1,6 +1,6 @@
 """Speed: the project's targets measured in one table, both engines side by side (issues 8, 27).
 
-    python benchmarks/speed.py [--only single,replay,batch,identification,diagnosis] [--workers 2]
+    python benchmarks/speed.py [--only single,replay,batch,identification,diagnosis,plan] [--workers 2]
                                [--repeats 3] [--json benchmarks/out/speed.json] [--markdown]
 
 1. single: the nominal run and the joint-7 failure (the default Scenario) on the Drake Diagram and on
@@ -16,6 +16,7 @@
 4. identification: on a synthesized identification campaign (3 s trials), AVS from the paper's manual
    values (10 iterations) against the program fit and the equation-error fit.
 5. diagnosis: `rc1 diagnose` (every candidate effect) on the shipped 21-trial campaign.
+6. plan: `rc1 design` from that diagnosis (budget 4, 8 drawn designs, one check replicate; issue 68 item 6).
 
 Each section prints as it finishes; the table at the end gives every figure with its target.
 `--markdown` writes that table into docs/speed.md between its speed-table markers (a re-run section replaces its rows).
@@ -41,7 +42,7 @@ from rc1_drake.executor import make_executor
 from rc1_drake.protocol import Session
 from rc1_drake.reference import simulate_reference
 
-SECTIONS = ("single", "replay", "batch", "identification", "diagnosis")
+SECTIONS = ("single", "replay", "batch", "identification", "diagnosis", "plan")
 TRIAL = REPO_ROOT / "data" / "paper_campaign" / "nominal_1.json"
 
 
@@ -249,6 +250,29 @@ def diagnosis(args) -> list:
         (f"diagnosis, every candidate, {len(campaign.trials)} trials (min)", wall / 60, "<= 2", wall <= 120),
         ("diagnosis: replays", result.simulations, "", None),
         ("diagnosis / one 10 s replay on this machine (for another machine)", wall / one, "", None),
+    ]
+
+
+def plan(args) -> list:
+    """`rc1 design`'s plan (budget 4, 8 drawn designs beside the paper's kinds, one check replicate) from the shipped
+    campaign's diagnosis: the plan's own time, the diagnosis before it not counted."""
+    from rc1_drake.cli.options import jsonable
+    from rc1_drake.design import design_trials
+    from rc1_drake.diagnose import diagnose
+    from rc1_drake.measurements import load_campaign, load_trial
+    from rc1_drake.replay import Replayer
+
+    replayer = Replayer(load_trial(TRIAL))
+    one = min(replayer.run(Scenario().friction).wall_time_s for _ in range(args.repeats + 1))  # compiles first
+    result = diagnose(load_campaign(REPO_ROOT / "data" / "paper_campaign"), workers=args.workers, probe_study=False)
+    data = json.loads(json.dumps(result.to_json(), default=jsonable))
+    start = time.perf_counter()
+    made = design_trials(diagnosis=data, budget=4, candidates=8, replicates=1, workers=args.workers)
+    wall = time.perf_counter() - start
+    print(f"plan: {made.considered} designs, {made.simulations} simulations, {wall:.0f} s", flush=True)
+    return [
+        (f"a plan of 4 trials among {made.considered} designs (min)", wall / 60, "<= 3", wall <= 180),
+        ("a plan / one 10 s replay on this machine", wall / one, "", None),
     ]
 
 
