@@ -130,6 +130,7 @@ def diagnosed(folders, cell: grid.Cell, args, checkpoint: Path, record: Path) ->
     """The diagnosis of the union of `folders` (its JSON) and its round scored as the grid scores, kept in `record`."""
     if record.is_file():
         return json.loads(record.read_text())
+    record.parent.mkdir(parents=True, exist_ok=True)  # before the long work: nothing measured is lost
     started = time.perf_counter()
     campaign = merged_campaigns(folders)
     result = diagnose(campaign, friction=Friction(), workers=args.workers, probe_study=False, start_rates="fit",
@@ -145,7 +146,8 @@ def diagnosed(folders, cell: grid.Cell, args, checkpoint: Path, record: Path) ->
         "simulations": result.simulations,
     }
     saved = {"diagnosis": json.loads(json.dumps(result.to_json(), default=jsonable)), "scored": scored}
-    record.write_text(json.dumps(saved) + "\n")
+    record.with_suffix(".partial").write_text(json.dumps(saved) + "\n")
+    record.with_suffix(".partial").rename(record)
     return saved
 
 
