@@ -114,16 +114,19 @@ class Campaign:
 
 def merged_campaigns(folders) -> Campaign:
     """Several campaign folders as one (a campaign and the trials a plan added to it, rc1 design): named after
-    the first; a trial id taken twice is prefixed by its folder's name from its second folder on."""
+    the first; a trial id taken twice is prefixed by its folder's name from its second folder on (and by the
+    folder's place among them where folders share a name)."""
     if len({Path(f).resolve() for f in folders}) < len(folders):
         raise Rc1Error(f"{', '.join(map(str, folders))}: a campaign folder is given twice")
     campaigns = [load_campaign(f) for f in folders]
     if len(campaigns) == 1:
         return campaigns[0]
     trials, seen = [], set()
-    for campaign in campaigns:
+    for k, campaign in enumerate(campaigns, 1):
         for trial in campaign.trials:
-            trial_id = trial.trial_id if trial.trial_id not in seen else f"{Path(campaign.path).name}-{trial.trial_id}"
+            trial_id = trial.trial_id
+            for prefix in (Path(campaign.path).name, f"{Path(campaign.path).name}{k}"):  # folders of one name: k
+                trial_id = f"{prefix}-{trial.trial_id}" if trial_id in seen else trial_id
             if trial_id in seen:
                 raise Rc1Error(f"{campaign.path}: trial {trial.trial_id} is in two of the folders given")
             seen.add(trial_id)

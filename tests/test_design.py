@@ -207,3 +207,18 @@ def test_the_design_loop_benchmark_names_a_bad_cell_in_one_line_before_any_campa
                           capture_output=True, text=True, timeout=120)  # fmt: skip
     assert proc.returncode != 0 and not (tmp_path / "out").exists()
     assert proc.stderr.strip().splitlines() == ["design_loop: unknown cell or way gravity (cells: paper_rates.CELLS)"]
+
+
+def test_campaign_folders_of_one_name_merge_with_every_trial_id_their_own(tmp_path):
+    """A campaign and two rounds of added trials, each in a folder named `trials`: one trial id in all three."""
+    import shutil
+
+    from rc1_drake.config import Stop
+    from rc1_drake.synthesize import Case, synthesize_campaign
+
+    synthesize_campaign(tmp_path / "made", design=[Case([], 1)], stop=Stop(time_limit_s=0.5))
+    folders = [tmp_path / name / "trials" for name in ("a", "b", "c")]
+    for folder in folders:
+        shutil.copytree(tmp_path / "made", folder)
+    merged = merged_campaigns(folders)
+    assert [t.trial_id for t in merged.trials] == ["nominal_1", "trials-nominal_1", "trials3-nominal_1"]
