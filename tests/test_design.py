@@ -222,3 +222,32 @@ def test_campaign_folders_of_one_name_merge_with_every_trial_id_their_own(tmp_pa
         shutil.copytree(tmp_path / "made", folder)
     merged = merged_campaigns(folders)
     assert [t.trial_id for t in merged.trials] == ["nominal_1", "trials-nominal_1", "trials3-nominal_1"]
+
+
+def test_the_failed_joints_scatter_the_diagnosis_took_discounts_only_failed_joint_trials():
+    """A 2 deg toe against the paper's model on 3 s trials: with the diagnosis's scatter (tau 1 probe step), a
+    joint-7 trial's distance falls (its failed joint's swing is part noise), a trial with no failure keeps its own."""
+    lab, evaluator = Lab(min_seconds=1.0), Evaluator(None)
+    toe, paper = Hypothesis("toe", Friction(), {"wheel_toe_deg": 2.0}), Hypothesis("paper", Friction(), {})
+    for failed, falls in (((7,), True), ((), False)):
+        made = [synthesized_trial(TrialDesign(failed, seconds=3.0), toe, lab, noisy, 3, "d0") for noisy in (0, 1)]
+        plain, weighed = (
+            distance(rival_linearization([made[0]], [made[1]], paper, [], evaluator, tau), [0]) for tau in (0.0, 1.0)
+        )
+        assert (weighed < 0.95 * plain) if falls else weighed == plain, (failed, plain, weighed)  # 233 -> 210
+
+
+def test_the_plan_predicts_the_held_out_ratio_the_diagnosis_decides_by():
+    """Today's best leaves 400 (held out), its rival 460: 4 trials of 50 rows add 200 to the true one's and the
+    pair's distance to the rival's, so a distance of 240 brings the ratio to (600 + 60 + 240) / 600 = 1.5."""
+    from rc1_drake.design.plan import Standing
+
+    hypotheses = [Hypothesis(n, Friction(), {}) for n in ("head_drag", "module_payload")]
+    simulated = lambda ss: {"held_out_sum_of_squares_after": ss}  # noqa: E731
+    diagnosis = {"rounds": [{"candidates": [{"name": "head_drag", "simulated": simulated(400.0)},
+                                            {"name": "module_payload", "simulated": simulated(460.0)},
+                                            {"name": "wheel_toe", "simulated": None}]}]}  # fmt: skip
+    standing = Standing.of(diagnosis, hypotheses)
+    assert standing.leftover == 400.0 and standing.apart == {"head_drag | module_payload": 60.0}
+    assert standing.ratio("head_drag | module_payload", 240.0, 200.0) == pytest.approx(1.5)
+    assert Standing.of({"rounds": [{"candidates": []}]}, hypotheses).ratio("x | y", 50.0, 100.0) == pytest.approx(1.5)

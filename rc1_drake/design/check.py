@@ -9,10 +9,10 @@ from .hypotheses import pairs
 from .separation import distance, rival_linearization, synthesized_trial
 
 
-def realized_separation(designs, hypotheses, lab, free, evaluator, *, replicates: int, seed: int) -> dict:
+def realized_separation(designs, hypotheses, lab, free, evaluator, *, replicates: int, seed: int, scatter=0.0) -> dict:
     """Per direction "a's trials, b fitted": the realized ratio (the rival's weighted sum of squares less a's own,
-    both fitted with their starts, the free friction and their own effects) of each of `replicates` noisy copies
-    of the planned trials (`designs`)."""
+    both fitted with their starts, the free friction and their own effects; weighed by the failed joint's `scatter`)
+    of each of `replicates` noisy copies of the planned trials (`designs`)."""
     out: dict[str, list[float]] = {}
     every = list(range(len(designs)))
     for r in range(replicates):
@@ -23,11 +23,13 @@ def realized_separation(designs, hypotheses, lab, free, evaluator, *, replicates
         ]  # fmt: skip
         if any(isinstance(t, str) for trials in noisy for t in trials):
             continue  # a replicate whose run fails the loader's checks (separation.synthesized_trial) is not drawn
-        own = [distance(rival_linearization(noisy[x], noisy[x], h, free, evaluator), every)
+        own = [distance(rival_linearization(noisy[x], noisy[x], h, free, evaluator, scatter), every)
                for x, h in enumerate(hypotheses)]  # fmt: skip
         for a, b in pairs(hypotheses):
             for x, y in ((a, b), (b, a)):
-                rival = distance(rival_linearization(noisy[x], noisy[x], hypotheses[y], free, evaluator), every)
+                rival = distance(
+                    rival_linearization(noisy[x], noisy[x], hypotheses[y], free, evaluator, scatter), every
+                )
                 out.setdefault(direction(hypotheses, x, y), []).append(rival - own[x])
     return out
 

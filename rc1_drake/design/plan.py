@@ -3,10 +3,11 @@ together from designs drawn over what the robot and the lab can run, and written
 
 Every candidate design is synthesized under every hypothesis (separation.synthesized_trial), dropped where a
 hypothesis's head path leaves the floor or turns tighter than RC1 can, and each hypothesis is linearized on every
-other's trials (separation.rival_linearization). The trials are then chosen greedily, each step adding the design
-that most raises the worst pair's distance over the trials chosen so far — the rival refits its starts, the free
-friction and its own effects over all of them together, so that a design which only repeats what another already
-shows adds little (maximin T-optimality, evaluated again at each step)."""
+other's trials (separation.rival_linearization), weighed by the failed joint's scatter where the diagnosis took it.
+The trials are then chosen greedily, each step adding the design that most raises the worst pair's distance over the
+trials chosen so far — the rival refits its starts, the free friction and its own effects over all of them together,
+so that a design which only repeats what another already shows adds little (maximin T-optimality, evaluated again
+at each step)."""
 
 import dataclasses
 import json
@@ -17,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from ..config import Rc1Error
+from ..diagnose.thresholds import THRESHOLDS
 from ..executor import make_executor
 from ..sysid.evaluate import Evaluator
 from .check import check_lines, direction, predicted_separation, realized_separation
@@ -24,6 +26,7 @@ from .hypotheses import Hypothesis, open_hypotheses, pairs
 from .lab import Lab, TrialDesign, off_the_floor, sampled_designs
 from .separation import rival_linearization, synthesized_trial, told_apart
 
+AMBIGUOUS_RATIO = THRESHOLDS.ambiguous_ratio
 # The paper's cases and the probe study's kinds among the candidates: a design has to beat them to be chosen.
 PAPER_KINDS = [
     TrialDesign(()),
@@ -50,6 +53,8 @@ class Plan:
     wall_s: float
     predicted: dict[str, float] = dataclasses.field(default_factory=dict)  # per direction (check.py)
     realized: dict[str, list[float]] = dataclasses.field(default_factory=dict)  # per direction, each replicate
+    # per step: "a | b" -> the held-out ratio the diagnosis of the union is predicted to see (Standing.ratio)
+    ratios: list[dict[str, float]] = dataclasses.field(default_factory=list)
 
     def to_json(self) -> dict:
         return {
@@ -61,6 +66,7 @@ class Plan:
             "trials": [dataclasses.asdict(d) | {"label": d.label()} for d in self.chosen],
             "evidence": self.evidence,
             "told_apart": [{pair: told_apart(d) for pair, d in step.items()} for step in self.evidence],
+            "held_out_ratio": self.ratios,
             "check": {n: {"predicted": self.predicted[n], "realized": v} for n, v in self.realized.items()},
             "considered": self.considered,
             "dropped": self.dropped,
@@ -71,11 +77,11 @@ class Plan:
     def format(self) -> str:
         names = ", ".join(h.name for h in self.hypotheses)
         lines = [f"the next {len(self.chosen)} trials to tell apart {names} (of {self.considered} designs):"]
-        for k, (d, step) in enumerate(zip(self.chosen, self.evidence, strict=True), 1):
-            worst = min(step, key=step.get)
+        for k, (d, step, ratio) in enumerate(zip(self.chosen, self.evidence, self.ratios, strict=True), 1):
+            worst = min(ratio, key=ratio.get)
             lines.append(
-                f"  {k}. {d.label()}: worst pair {worst} {step[worst]:.3g} apart "
-                f"(told apart {100 * told_apart(step[worst]):.0f}% of the time)"
+                f"  {k}. {d.label()}: worst pair {worst} {step[worst]:.3g} apart, a held-out ratio of "
+                f"{ratio[worst]:.2f} predicted (the diagnosis names one at {AMBIGUOUS_RATIO:g})"
             )
         if self.realized:
             count = len(next(iter(self.realized.values())))
@@ -136,6 +142,7 @@ def design_trials(*, diagnosis: dict, lab: Lab | None = None, budget: int = 4, c
         raise Rc1Error(f"design: the budget must be at least 1 trial, got {budget}")
     hypotheses = open_hypotheses(diagnosis, where)
     free = list(diagnosis.get("free_friction", []))
+    scatter = float((diagnosis.get("scatter") or [0.0])[0])  # the failed joint's, as the diagnosis took it
     designs = [d for d in PAPER_KINDS if d.seconds <= lab.max_seconds and list(d.failed_joints) in lab.failures]
     designs += sampled_designs(lab, candidates, np.random.default_rng(seed))
     with make_executor(workers=workers or os.cpu_count()) as executor:
@@ -147,19 +154,21 @@ def design_trials(*, diagnosis: dict, lab: Lab | None = None, budget: int = 4, c
             raise Rc1Error("design: no candidate design stays on the lab's floor")
         lins = {
             (a, b): rival_linearization(
-                [made[0][a][k] for k in keep], [made[1][a][k] for k in keep], hypotheses[b], free, evaluator
+                [made[0][a][k] for k in keep], [made[1][a][k] for k in keep], hypotheses[b], free, evaluator, scatter
             )  # fmt: skip
             for a in range(len(hypotheses))
             for b in range(len(hypotheses))
             if a != b
         }
-        chosen, evidence = _greedy(hypotheses, lins, min(budget, len(keep)))
+        chosen, evidence, ratios = _greedy(hypotheses, lins, min(budget, len(keep)), Standing.of(diagnosis, hypotheses))
         picked = [designs[keep[n]] for n in chosen]
-        realized = realized_separation(picked, hypotheses, lab, free, evaluator, replicates=replicates, seed=seed)
+        realized = realized_separation(picked, hypotheses, lab, free, evaluator, replicates=replicates, seed=seed,
+                                       scatter=scatter)  # fmt: skip
         simulations = evaluator.simulations
     paths = [{h.name: made[0][i][keep[n]].camera[:, :2].tolist() for i, h in enumerate(hypotheses)} for n in chosen]
     return Plan(lab, hypotheses, picked, evidence, paths, len(designs), dropped, simulations,
-                time.perf_counter() - started, predicted_separation(hypotheses, lins, chosen), realized)  # fmt: skip
+                time.perf_counter() - started, predicted_separation(hypotheses, lins, chosen), realized,
+                ratios)  # fmt: skip
 
 
 def _synthesized(designs, hypothesis, lab, noisy, seed, evaluator) -> list:
@@ -179,16 +188,52 @@ def _dropped(designs, made, lab) -> dict[str, str]:
     return out
 
 
-def _greedy(hypotheses, lins, count: int) -> tuple[list[int], list[dict]]:
-    """`count` trials, each step the one that most raises the worst pair's distance over those chosen so far."""
-    chosen, evidence = [], []
+@dataclasses.dataclass(frozen=True)
+class Standing:
+    """Where the diagnosis leaves the hypotheses: the best one's held-out weighted sum of squares (`leftover`) and,
+    per pair, how far the other's already is above it. The diagnosis names an effect only where its rivals' held-out
+    sum of squares is Thresholds.ambiguous_ratio times its own (decide.decide); on data a hypothesis explains, a
+    trial adds about its row count to the true one's (its rows' noise, in the noise's units) and the pair's distance
+    more to the rival's: the ratio the union's diagnosis is predicted to see."""
+
+    leftover: float = 0.0
+    apart: dict = dataclasses.field(default_factory=dict)  # "a | b" -> the rival's excess today
+
+    @classmethod
+    def of(cls, diagnosis: dict, hypotheses) -> "Standing":
+        simulated = {c["name"]: c["simulated"]["held_out_sum_of_squares_after"]
+                     for c in diagnosis["rounds"][-1]["candidates"] if c.get("simulated")}  # fmt: skip
+        if not simulated:
+            return cls()
+        best = min(simulated.values())
+        apart = {f"{hypotheses[a].name} | {hypotheses[b].name}": abs(simulated[hypotheses[a].name]
+                 - simulated[hypotheses[b].name]) for a, b in pairs(hypotheses)
+                 if hypotheses[a].name in simulated and hypotheses[b].name in simulated}  # fmt: skip
+        return cls(best, apart)
+
+    def ratio(self, pair: str, distance: float, rows: float) -> float:
+        own = self.leftover + rows
+        return (own + self.apart.get(pair, 0.0) + distance) / max(own, 1e-9)
+
+
+def _greedy(hypotheses, lins, count: int, standing: Standing) -> tuple[list[int], list[dict], list[dict]]:
+    """`count` trials, each step the one that most raises the worst pair's predicted held-out ratio (Standing) over
+    those chosen so far."""
+    chosen, evidence, ratios = [], [], []
     for _ in range(count):
-        scored = [(min(step.values()), n, step) for n in range(len(lins[0, 1].trials)) if n not in chosen
-                  for step in [_pair_distances(hypotheses, lins, chosen + [n])]]  # fmt: skip
-        _, best, step = max(scored, key=lambda s: s[0])
+        scored = []
+        for n in range(len(lins[0, 1].trials)):
+            if n in chosen:
+                continue
+            step = _pair_distances(hypotheses, lins, chosen + [n])
+            rows = np.mean([sum(len(lin.r0[k]) for k in chosen + [n]) for lin in lins.values()])
+            ratio = {pair: standing.ratio(pair, d, rows) for pair, d in step.items()}
+            scored.append((min(ratio.values()), n, step, ratio))
+        _, best, step, ratio = max(scored, key=lambda s: s[0])
         chosen.append(best)
         evidence.append(step)
-    return chosen, evidence
+        ratios.append(ratio)
+    return chosen, evidence, ratios
 
 
 def load_plan(folder) -> tuple[list[TrialDesign], Lab]:

@@ -18,6 +18,7 @@ from pathlib import Path
 from ..config import Rc1Error
 from ..diagnose.fit import fit
 from ..diagnose.linearize import Linearization, linearize, replay_errors, trial_weights
+from ..diagnose.scatter import failed_joint_scatter
 from ..measurements import load_campaign
 from ..synthesize import Noise, Variation, synthesize_campaign
 from .hypotheses import Hypothesis
@@ -52,14 +53,19 @@ def synthesized_trial(design: TrialDesign, hypothesis: Hypothesis, lab: Lab, noi
     return dataclasses.replace(trial, trial_id=label)
 
 
-def rival_linearization(data, noisy, rival: Hypothesis, free: list[str], evaluator) -> Linearization:
+def rival_linearization(data, noisy, rival: Hypothesis, free: list[str], evaluator, scatter: float = 0.0):
     """`rival` linearized on the trials `data` (one hypothesis's, noise-free), its columns for each trial's start,
     the `free` friction coefficients and its own effects, each trial weighed by the replay's own error measured on
-    its `noisy` copy at the rival's model (BOOTSTRAP_DRAWS draws)."""
+    its `noisy` copy at the rival's model (BOOTSTRAP_DRAWS draws) and, with `scatter` (tau, the diagnosis's), by the
+    failed joint's scatter as the diagnosis weighs its trials (diagnose.scatter): a failed-joint trial tells what
+    the scatter leaves of it, not what the sensors alone would."""
     _, noise, _, _ = replay_errors(noisy, rival.friction, rival.effects, evaluator, BOOTSTRAP_DRAWS)
     held = [n for n in dataclasses.asdict(rival.friction) if n not in free]
-    return linearize(data, rival.friction, rival.effects, list(rival.owned), evaluator, noise=noise, held=held,
-                     starts=True)  # fmt: skip
+    lin = linearize(data, rival.friction, rival.effects, list(rival.owned), evaluator, noise=noise, held=held,
+                    starts=True)  # fmt: skip
+    if scatter > 0.0 and any(t.failed_joints for t in data):
+        lin = failed_joint_scatter(lin, evaluator).weighing(lin, scatter)
+    return lin
 
 
 def subset(lin: Linearization, indices: list[int]) -> Linearization:
