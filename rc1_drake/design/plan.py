@@ -202,7 +202,7 @@ class Standing:
     @classmethod
     def of(cls, diagnosis: dict, hypotheses) -> "Standing":
         simulated = {c["name"]: c["simulated"]["held_out_sum_of_squares_after"]
-                     for c in diagnosis["rounds"][-1]["candidates"] if c.get("simulated")}  # fmt: skip
+                     for c in diagnosis["rounds"][-1].get("candidates", []) if c.get("simulated")}  # fmt: skip
         if not simulated:
             return cls()
         best = min(simulated.values())
