@@ -91,7 +91,8 @@ def probe_designs(diagnosis: dict, budget: int, workers: int) -> list[TrialDesig
         kind = found[0]
     else:
         kind = min(study, key=lambda k: min(study[k][names[0]]["detectable_strength"].values()))
-    trials = [TrialDesign(tuple(j), frequency_deg_s=f or 140.0, bias_deg=bias) for j, f, bias in PROBE_KINDS[kind]]
+    paper = TrialDesign.frequency_deg_s  # a kind without its own frequency runs the paper's gait
+    trials = [TrialDesign(tuple(j), frequency_deg_s=f or paper, bias_deg=bias) for j, f, bias in PROBE_KINDS[kind]]
     return [trials[k % len(trials)] for k in range(budget)]
 
 

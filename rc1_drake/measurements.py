@@ -124,9 +124,11 @@ def merged_campaigns(folders) -> Campaign:
     trials, seen = [], set()
     for k, campaign in enumerate(campaigns, 1):
         for trial in campaign.trials:
-            trial_id = trial.trial_id
-            for prefix in (Path(campaign.path).name, f"{Path(campaign.path).name}{k}"):  # folders of one name: k
-                trial_id = f"{prefix}-{trial.trial_id}" if trial_id in seen else trial_id
+            name, trial_id = Path(campaign.path).name, trial.trial_id
+            if trial_id in seen:
+                trial_id = f"{name}-{trial.trial_id}"
+            if trial_id in seen:  # folders of one name: their place among them too
+                trial_id = f"{name}{k}-{trial.trial_id}"
             if trial_id in seen:
                 raise Rc1Error(f"{campaign.path}: trial {trial.trial_id} is in two of the folders given")
             seen.add(trial_id)

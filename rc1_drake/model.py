@@ -44,7 +44,7 @@ def add_rc1_plant(builder, *, time_step: float, model_path=MODEL_PATH, backstops
     A discrete plant enforces the joint limits (+-38 deg) as constraints: this is the restoring
     torque at the limits of paper section 3, and it keeps a failed joint inside them. The joints in
     `backstops` (1-based; effects.stop_backstops: a compliant stop in place of their limit) get
-    effects.with_backstops' wider limits, which a Drake plant takes only before it is finalized.
+    with_backstops' wider limits, which a Drake plant takes only before it is finalized.
     """
     plant, scene_graph = AddMultibodyPlant(
         MultibodyPlantConfig(time_step=time_step, discrete_contact_approximation="sap"), builder

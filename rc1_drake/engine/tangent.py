@@ -37,6 +37,7 @@ from ..friction import (
     assemble_step,
     cholesky,
     cholesky_solve,
+    compliant_stop,
     coulomb_law,
     friction_problem,
     lu_factor,
@@ -273,10 +274,8 @@ def friction_tangent(
     out = np.empty((dx.shape[0], nv))
     moving = np.ascontiguousarray(dx[:, nv:]) @ np.ascontiguousarray(mass_matrix.T)  # M dv, every direction at once
     free_rate = np.where(free, v_plus[3:], 0.0)
-    k_stop, in_stop = params[STOP_K], np.zeros(nv)  # sgn(q) of the free joints past a compliant stop's onset
-    for j in range(3, nv):
-        if free[j - 3] and k_stop > 0.0 and abs(x[j]) > params[STOP_ONSET]:
-            in_stop[j] = np.sign(x[j])
+    k_stop = params[STOP_K]  # sgn(q) of the free joints in a compliant stop: where the stop adds its rate
+    in_stop = np.where(compliant_stop(x, params, dt)[1] != 0.0, np.sign(x[:nv]), 0.0)
     for d in range(dx.shape[0]):
         dp = dparams[d]
         dR = dmass_w[d] - moving[d] - dt * dother[d]
