@@ -52,6 +52,10 @@ PAGE, BLOCK, WRITER = REPO_ROOT / "docs" / "design.md", "design-loop-table", "be
 README, SUMMARY = REPO_ROOT / "README.md", "design-loop-summary"
 ROWS = rows_file("design_loop")
 WAYS = ("designed", "paper", "probe", "random")
+# The planner's hypotheses as `designed` rows name them; rows without one were planned against the tied candidates
+# alone (before design.hypotheses took every candidate that helped) and are tabled apart as EARLIER_DESIGNED.
+PLANNER = "every candidate that helped"
+EARLIER_DESIGNED = "designed, against the tied candidates only"
 DECIDED = ("effect_found", "no_missing_effect")
 TRIALS_PER_CASE = 2  # round 0: the grid's campaign
 # The cells in the order a partial table is most worth having: another model's data first, then this model's.
@@ -156,13 +160,14 @@ def loop(cell: grid.Cell, seed: int, way: str, args) -> dict:
     """One cell, seed and way: its rounds, each scored, resumed from OUT where an earlier run left them."""
     name = f"{cell.label.replace(' ', '_')}-{seed}"
     base, home = args.out / "campaigns" / name, args.out / "loops" / name
+    folder_of_way = f"{way}-{PLANNER.replace(' ', '_')}" if way == "designed" else way
     if not base.is_dir():
         synthesize_trials(base, cell, grid.design(TRIALS_PER_CASE), seed, Stop())
     checkpoint = args.out / "checkpoints" / name  # shared by the ways and rounds: a replay's key is its job
     folders, rounds, extras, saved = [base], [], [], None
     for r in range(args.rounds + 1):
         if r:
-            folder = home / way / f"round_{r}"
+            folder = home / folder_of_way / f"round_{r}"
             if not (folder / "trials").is_dir():  # made whole or made again
                 cases, stop, extra = next_trials(way, cell, saved["diagnosis"], args, 1000 * seed + r, folder)
                 shutil.rmtree(folder / "partial", ignore_errors=True)
@@ -173,11 +178,18 @@ def loop(cell: grid.Cell, seed: int, way: str, args) -> dict:
                 (folder / "partial").rename(folder / "trials")
             folders.append(folder / "trials")
             extras.append(json.loads((folder / "chosen.json").read_text()))
-        saved = diagnosed(folders, cell, args, checkpoint, home / (way if r else "") / f"round_{r}.json")
+        saved = diagnosed(folders, cell, args, checkpoint, home / (folder_of_way if r else "") / f"round_{r}.json")
         rounds.append(saved["scored"])
         if saved["scored"]["verdict"] in DECIDED:
             break
-    return {"cell": cell.label, "seed": seed, "way": way, "budget": args.budget, "rounds": rounds, "chosen": extras}
+    row = {"cell": cell.label, "seed": seed, "way": way, "budget": args.budget, "rounds": rounds, "chosen": extras}
+    return row | ({"planner": PLANNER} if way == "designed" else {})
+
+
+def way_of(row: dict) -> str:
+    """The row's way, a designed row of an earlier planner as EARLIER_DESIGNED."""
+    earlier = row["way"] == "designed" and row.get("planner") != PLANNER
+    return EARLIER_DESIGNED if earlier else row["way"]
 
 
 def _by_round(row: dict, k: int) -> dict:
@@ -201,8 +213,8 @@ def table(rows: list, rounds: int) -> str:
         "|---|---|---|" + "---|" * (rounds + 1) + "---|---|---|---|---|",
     ]
     for cell in dict.fromkeys(r["cell"] for r in reported):
-        for way in WAYS:
-            mine = [r for r in reported if r["cell"] == cell and r["way"] == way]
+        for way in (*WAYS, EARLIER_DESIGNED):
+            mine = [r for r in reported if r["cell"] == cell and way_of(r) == way]
             if not mine:
                 continue
             right = " | ".join(str(sum(_by_round(r, k)["outcome"] == "right" for r in mine)) for k in range(rounds + 1))
@@ -226,16 +238,17 @@ def summary(rows: list, rounds: int) -> str:
         return "The loop with designed trials (`benchmarks/design_loop.py`): not yet measured on reported seeds."
     parts = []
     for way in WAYS:
-        mine = [r for r in reported if r["way"] == way]
+        mine = [r for r in reported if way_of(r) == way]
         if mine:
             right = sum(_by_round(r, rounds)["outcome"] == "right" for r in mine)
             parts.append(f"{way} {right} of {len(mine)}")
-    start = sum(r["rounds"][0]["outcome"] == "right" for r in reported if r["way"] == reported[0]["way"])
+    first = way_of(reported[0])  # round 0 is every way's: counted on one
+    start = sum(r["rounds"][0]["outcome"] == "right" for r in reported if way_of(r) == first)
     cells = len({r["cell"] for r in reported})
     return (
         f"Closing the loop (`benchmarks/design_loop.py`, {cells} cells, seeds {seeds[0]}-{seeds[-1]}, up to {rounds}"
         f" rounds of {reported[0]['budget']} trials): right after them, {', '.join(parts)} (right before them:"
-        f" {start} of {sum(r['way'] == reported[0]['way'] for r in reported)}); docs/design.md."
+        f" {start} of {sum(way_of(r) == first for r in reported)}); docs/design.md."
     )
 
 
@@ -260,7 +273,7 @@ def main():
         check_block(PAGE, BLOCK, WRITER)
         check_block(README, SUMMARY, WRITER)
     args.out.mkdir(parents=True, exist_ok=True)
-    done = {(r["cell"], r["seed"], r["way"]) for r in load_rows(ROWS) if r["budget"] == args.budget}
+    done = {(r["cell"], r["seed"], way_of(r)) for r in load_rows(ROWS) if r["budget"] == args.budget}
     jobs = [(c, s, w) for s in parse_seeds(args.seeds) for c in chosen for w in ways if (c, s, w) not in done]
     for k, (cell, seed, way) in enumerate([] if args.table_only else jobs, 1):
         started = time.perf_counter()

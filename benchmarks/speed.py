@@ -1,6 +1,6 @@
 """Speed: the project's targets measured in one table, both engines side by side (issues 8, 27).
 
-    python benchmarks/speed.py [--only single,replay,batch,identification,diagnosis,plan] [--workers 2]
+    python benchmarks/speed.py [--only single,replay,batch,identification,diagnosis,plan,foreign] [--workers 2]
                                [--repeats 3] [--json benchmarks/out/speed.json] [--markdown]
 
 1. single: the nominal run and the joint-7 failure (the default Scenario) on the Drake Diagram and on
@@ -17,6 +17,9 @@
    values (10 iterations) against the program fit and the equation-error fit.
 5. diagnosis: `rc1 diagnose` (every candidate effect) on the shipped 21-trial campaign.
 6. plan: `rc1 design` from that diagnosis (budget 4, 8 drawn designs, one check replicate; issue 68 item 6).
+7. foreign: `rc1 diagnose --start-rates fit` on 20 trials another model made (issue 67 item 6): reference.py, 5 each
+   of no failure, J7, J13 and J7+bias, 10 s, 50 Hz, its failed joint's stop at 50 N m/rad; the campaign is made once
+   (about 5 min, reference.py is serial) into benchmarks/out/speed_foreign and reused.
 
 Each section prints as it finishes; the table at the end gives every figure with its target.
 `--markdown` writes that table into docs/speed.md between its speed-table markers (a re-run section replaces its rows).
@@ -27,6 +30,7 @@ import dataclasses
 import json
 import os
 import platform
+import shutil
 import tempfile
 import time
 from pathlib import Path
@@ -42,7 +46,7 @@ from rc1_drake.executor import make_executor
 from rc1_drake.protocol import Session
 from rc1_drake.reference import simulate_reference
 
-SECTIONS = ("single", "replay", "batch", "identification", "diagnosis", "plan")
+SECTIONS = ("single", "replay", "batch", "identification", "diagnosis", "plan", "foreign")
 TRIAL = REPO_ROOT / "data" / "paper_campaign" / "nominal_1.json"
 
 
@@ -273,6 +277,46 @@ def plan(args) -> list:
     return [
         (f"a plan of 4 trials among {made.considered} designs (min)", wall / 60, "<= 3", wall <= 180),
         ("a plan / one 10 s replay on this machine", wall / one, "", None),
+    ]
+
+
+FOREIGN = REPO_ROOT / "benchmarks" / "out" / "speed_foreign"
+FOREIGN_STOP_NM_PER_RAD = 50.0
+
+
+def foreign_campaign():
+    """The foreign section's campaign (module docstring), made on first use."""
+    from rc1_drake.measurements import load_campaign
+    from rc1_drake.synthesize import Case, synthesize_campaign
+
+    partial = FOREIGN.with_name(FOREIGN.name + ".partial")
+    if not FOREIGN.exists():  # made whole in `partial` (an interrupted one started again), then renamed
+        shutil.rmtree(partial, ignore_errors=True)
+        design = [Case([], 5), Case([7], 5), Case([13], 5), Case([7], 5, bias_deg=-0.9)]
+        synthesize_campaign(partial, design=design, seed=67, sample_period_s=0.02, truth_model="reference",
+                            effects={"reference_stop_Nm_per_rad": FOREIGN_STOP_NM_PER_RAD},
+                            stop=Stop(line_x_m=None, revolutions=None, time_limit_s=10.0))  # fmt: skip
+        partial.rename(FOREIGN)
+    return load_campaign(FOREIGN)
+
+
+def foreign(args) -> list:
+    from rc1_drake.diagnose import diagnose
+    from rc1_drake.measurements import load_trial
+    from rc1_drake.replay import Replayer
+
+    campaign = foreign_campaign()
+    replayer = Replayer(load_trial(TRIAL))
+    one = min(replayer.run(Scenario().friction).wall_time_s for _ in range(args.repeats + 1))  # compiles first
+    start = time.perf_counter()
+    result = diagnose(campaign, workers=args.workers, start_rates="fit")
+    wall = time.perf_counter() - start
+    print(f"foreign diagnosis: {len(campaign.trials)} trials, {result.simulations} replays, {wall:.0f} s, verdict "
+          f"{result.verdict}", flush=True)  # fmt: skip
+    return [
+        (f"diagnosis of {len(campaign.trials)} foreign trials, starts fitted (min)", wall / 60, "<= 3", wall <= 180),
+        ("foreign diagnosis: replays", result.simulations, "", None),
+        ("foreign diagnosis / one 10 s replay on this machine", wall / one, "", None),
     ]
 
 

@@ -99,6 +99,27 @@ def test_the_open_hypotheses_are_read_from_the_diagnosis_for_each_verdict():
         open_hypotheses({"verdict": "ambiguous"})
 
 
+def _checked(candidate, reduction, after):
+    return dict(candidate, simulated={"held_out_reduction": reduction, "held_out_sum_of_squares_after": after})
+
+
+def test_a_candidate_that_helped_on_held_out_trials_stays_a_rival_best_first_and_one_that_did_not_is_dropped():
+    toe, drag, payload, slope, tether = (
+        _checked(_candidate("wheel_toe", {"wheel_toe_deg": [1.2, 0.4]}), 0.6, 100.0),
+        _checked(_candidate("head_drag", {"head_drag_mu": [0.3, 0.1]}), 0.55, 120.0),
+        _checked(_candidate("module_payload", {"payload_kg": [0.2, 0.1]}), 0.3, 300.0),
+        _checked(_candidate("ground_slope", {"ground_slope_x_deg": [1.0, 0.5]}), 0.4, 250.0),
+        _checked(_candidate("tail_tether", {"tail_tether_N": [0.1, 0.1]}), 0.02, 500.0),  # below decide's least gain
+    )
+    tied = _diagnosis("ambiguous", [toe, drag, payload, slope, tether], ambiguous=["wheel_toe", "head_drag"])
+    assert [h.name for h in open_hypotheses(tied)] == ["wheel_toe", "head_drag", "ground_slope", "module_payload"]
+    found = _diagnosis("effect_found", [dict(toe, status="accepted"), drag, payload, tether], accepted="wheel_toe",
+                       effects={"wheel_toe_deg": 1.2})  # fmt: skip
+    hypotheses = open_hypotheses(found)
+    assert [h.name for h in hypotheses] == ["wheel_toe", "head_drag", "module_payload"]
+    assert hypotheses[2].effects == {"payload_kg": 0.2}  # in the accepted effect's place
+
+
 def test_two_hypotheses_are_as_far_apart_as_the_rival_cannot_fit_away():
     """A 3 s trial with no failure: the model is 0 apart from its own trial; a 2 deg wheel toe is farther from
     the paper's model than a 1 deg one; a rival that fits the toe's strength itself (its own effect) fits a
@@ -193,8 +214,12 @@ def test_the_design_loop_table_counts_a_loop_that_decided_early_as_it_ended(monk
         {"cell": "wheel_toe x1", "seed": 100, "way": "designed", "budget": 4, "wall_s": 1.0,  # chose: not reported
          "rounds": [scored("right", 8)]},
     ]  # fmt: skip
-    line = design_loop.table(rows, 2).splitlines()[-1]
-    assert line == "| wheel_toe x1 | designed | 2 | 0 | 1 | 1 | 1 | 1 of 1 | 6.0 | 60 | 7.5 |"
+    rows = [r | {"planner": design_loop.PLANNER} for r in rows]
+    earlier = dict(rows[0], rounds=[scored("ambiguous", 8), scored("ambiguous", 12)], planner=None)  # tabled apart
+    lines = design_loop.table([*rows, earlier], 2).splitlines()
+    assert lines[-2] == "| wheel_toe x1 | designed | 2 | 0 | 1 | 1 | 1 | 1 of 1 | 6.0 | 60 | 7.5 |"
+    earlier_line = f"| wheel_toe x1 | {design_loop.EARLIER_DESIGNED} | 1 | 0 | 0 | 0 | 0 | 0 of 0 | 4.0 | 40 | 10.0 |"
+    assert lines[-1] == earlier_line
 
 
 def test_the_design_loop_benchmark_names_a_bad_cell_in_one_line_before_any_campaign(tmp_path):

@@ -2,19 +2,25 @@
 (friction, effects) and the effects whose strength it fits itself. The next trials are chosen to tell them apart.
 
 - `ambiguous`: today's model with each candidate of the last round that explained the held-out trials alike, at
-  its fitted strength.
+  its fitted strength, and with each other candidate that helped there (a held-out gain when simulated), best first.
 - `effect_found`: the accepted model against the same model with the runner-up of the round that accepted it in
-  the accepted effect's place.
+  the accepted effect's place, and with each other candidate that helped in that round in its place.
 - `no_missing_effect` or `unexplained`: today's model against it with each candidate these trials could not see,
-  at the strength they would have needed to (its detectable strength), and with the best-ranked candidates."""
+  at the strength they would have needed to (its detectable strength), and with the best-ranked candidates.
+
+A candidate that helped but lost is kept as a rival: the union of a campaign and its designed trials has named such a
+one (a payload) tied with the effect the plan had set against the others. At most MAX_HYPOTHESES, each costing the
+plan a simulation of every design (those a verdict names, all of them)."""
 
 import dataclasses
 
 from ..config import Friction, Rc1Error
 from ..diagnose.decide import NOT_DETECTABLE
+from ..diagnose.thresholds import THRESHOLDS
 from ..effects import LIBRARY, effect_values
 
 RIVALS_WHEN_NOTHING_FOUND = 2  # the best-ranked candidates set against today's model beside the undetectable ones
+MAX_HYPOTHESES = 4
 
 
 @dataclasses.dataclass(frozen=True)
@@ -37,6 +43,20 @@ def _at_strength(effects: dict, name: str, coordinates: dict[str, float]) -> dic
     return {**effects, **effect.from_coordinates(current)}
 
 
+def helped(candidates: list[dict], besides) -> list[dict]:
+    """The candidates of a round not in `besides` whose simulated check gained on the held-out trials (decide's
+    least gain), by their held-out sum of squares after, best first."""
+    gained = [
+        c for c in candidates if c["name"] not in besides and c.get("simulated")
+        and c["simulated"]["held_out_reduction"] >= THRESHOLDS.min_held_out_reduction
+    ]  # fmt: skip
+    return sorted(gained, key=lambda c: c["simulated"]["held_out_sum_of_squares_after"])
+
+
+def _fitted(candidate: dict) -> dict[str, float]:
+    return {k: v[0] for k, v in candidate["coordinates"].items()}
+
+
 def open_hypotheses(diagnosis: dict, where: str = "diagnosis") -> list[Hypothesis]:
     """The hypotheses to tell apart (module docstring), at least two, or Rc1Error naming what the JSON lacks."""
     try:
@@ -49,11 +69,10 @@ def open_hypotheses(diagnosis: dict, where: str = "diagnosis") -> list[Hypothesi
     last = rounds[-1]
     if verdict == "ambiguous":
         by_name = {c["name"]: c for c in last["candidates"]}
+        tied = [by_name[n] for n in last["ambiguous"]]
         out = [
-            Hypothesis(
-                n, friction, _at_strength(effects, n, {k: v[0] for k, v in by_name[n]["coordinates"].items()}), (n,)
-            )  # fmt: skip
-            for n in last["ambiguous"]
+            Hypothesis(c["name"], friction, _at_strength(effects, c["name"], _fitted(c)), (c["name"],))
+            for c in (tied + helped(last["candidates"], last["ambiguous"]))[: max(MAX_HYPOTHESES, len(tied))]
         ]
     elif verdict == "effect_found":
         accepted = diagnosis["accepted_effects"][-1]
@@ -63,10 +82,12 @@ def open_hypotheses(diagnosis: dict, where: str = "diagnosis") -> list[Hypothesi
         runner = next((c for c in round_of["candidates"] if c["name"] != accepted and c["status"] != NOT_DETECTABLE
                        and c["name"] not in diagnosis["accepted_effects"]), None)  # fmt: skip
         out = [Hypothesis(accepted, friction, effects, (accepted,))]
-        if runner is not None:
-            rival = _at_strength(_without(effects, accepted), runner["name"],
-                                 {k: v[0] for k, v in runner["coordinates"].items()})  # fmt: skip
-            out.append(Hypothesis(runner["name"], friction, rival, (runner["name"],)))
+        rivals = ([runner] if runner is not None else []) + helped(
+            round_of["candidates"], [accepted, *diagnosis["accepted_effects"], runner and runner["name"]]
+        )
+        for c in rivals[: MAX_HYPOTHESES - 1]:
+            rival = _at_strength(_without(effects, accepted), c["name"], _fitted(c))
+            out.append(Hypothesis(c["name"], friction, rival, (c["name"],)))
     else:
         out = [Hypothesis("today's model", friction, effects)]
         ranked = [c for c in last["candidates"] if c["name"] not in effects]
