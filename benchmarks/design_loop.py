@@ -40,7 +40,7 @@ from calibrate import seeds as parse_seeds
 from doc_blocks import REPO_ROOT, append_row, check_block, load_rows, rows_file, write_block
 
 from rc1_drake.cli.options import jsonable
-from rc1_drake.config import Friction, Stop
+from rc1_drake.config import Friction, Rc1Error, Stop
 from rc1_drake.design import Lab, TrialDesign, design_trials, open_hypotheses
 from rc1_drake.design.lab import off_the_floor, sampled_designs
 from rc1_drake.diagnose import diagnose
@@ -101,8 +101,8 @@ def probe_designs(diagnosis: dict, budget: int, workers: int) -> list[TrialDesig
 
 
 def random_designs(cell: grid.Cell, lab: Lab, budget: int, seed: int, folder: Path) -> list[TrialDesign]:
-    """`budget` feasible drawn designs whose head path on the truth stays on the floor (a lab would stop a trial that
-    leaves it, and draw another)."""
+    """`budget` feasible drawn designs whose head path on the truth stays on the floor and whose run the loader takes (a
+    lab would stop a trial that leaves it, and draw another)."""
     shutil.rmtree(folder, ignore_errors=True)
     rng, out = np.random.default_rng([68, seed]), []
     for k in range(50 * budget):
@@ -110,7 +110,10 @@ def random_designs(cell: grid.Cell, lab: Lab, budget: int, seed: int, folder: Pa
             break
         draw = sampled_designs(lab, 1, rng)[0]
         synthesize_trials(folder / f"draw_{k}", cell, [draw.case()], seed)
-        trial = load_campaign(folder / f"draw_{k}").trials[0]
+        try:
+            trial = load_campaign(folder / f"draw_{k}").trials[0]
+        except Rc1Error:  # its run fails the loader's checks (a joint faster than a servo): the plan drops these too
+            continue
         if off_the_floor(trial.t, trial.camera[:, :2], trial.head_yaw_rate, lab) is None:
             out.append(draw)
     return out
@@ -170,6 +173,8 @@ def loop(cell: grid.Cell, seed: int, way: str, args) -> dict:
             folder = home / folder_of_way / f"round_{r}"
             if not (folder / "trials").is_dir():  # made whole or made again
                 cases, stop, extra = next_trials(way, cell, saved["diagnosis"], args, 1000 * seed + r, folder)
+                if not cases:
+                    raise SystemExit(f"design_loop: {cell.label} seed {seed}, round {r}: {way} chose no trial")
                 shutil.rmtree(folder / "partial", ignore_errors=True)
                 synthesize_trials(folder / "partial", cell, cases, 1000 * seed + r, stop)
                 (folder / "chosen.json").write_text(

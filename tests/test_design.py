@@ -44,6 +44,11 @@ def test_a_path_off_the_floor_or_turning_tighter_than_the_robot_can_is_refused()
     assert "0.40 m turning radius" in off_the_floor(t, circle, np.full_like(t, rate), lab)
     wide = 0.8 * np.column_stack([np.sin(0.2 * t), 1.0 - np.cos(0.2 * t)])  # 0.16 m/s, 0.2 rad/s: 0.8 m
     assert off_the_floor(t, wide, np.full_like(t, 0.2), lab) is None
+    unseen = straight.copy()
+    unseen[::7] = np.nan  # frames the camera missed: no verdict of their own
+    assert off_the_floor(t, unseen, np.zeros_like(t), lab) is None
+    unseen[-1] = [6.0, 0.0]
+    assert off_the_floor(t, unseen, np.zeros_like(t), lab) == "the head leaves the floor"
 
 
 @pytest.mark.parametrize(

@@ -125,7 +125,9 @@ def infeasible(design: TrialDesign, lab: Lab) -> str | None:
 def off_the_floor(t: np.ndarray, xy: np.ndarray, yaw_rate: np.ndarray, lab: Lab) -> str | None:
     """Why a simulated head path (at times t, N x 2, from the start at the origin heading +x) and its yaw rate
     cannot be run: off the lab's floor, or turning tighter than RC1's 0.6 m (its mean speed over its mean yaw
-    rate); else None."""
+    rate); else None. Frames the camera did not see (NaN) are left out."""
+    seen = ~np.isnan(xy).any(axis=1)
+    t, xy = t[seen], xy[seen]
     (x0, x1), (y0, y1) = lab.floor_x_m, lab.floor_y_m
     if not (np.all((x0 <= xy[:, 0]) & (xy[:, 0] <= x1)) and np.all((y0 <= xy[:, 1]) & (xy[:, 1] <= y1))):
         return "the head leaves the floor"
