@@ -234,14 +234,21 @@ def identification(args) -> list:
     ]
 
 
-def diagnosis(args) -> list:
-    from rc1_drake.diagnose import diagnose
-    from rc1_drake.measurements import load_campaign, load_trial
+def one_replay_s(repeats: int) -> float:
+    """The shipped 10 s trial's compiled replay, best of `repeats` after a first that compiles: the machine's unit."""
+    from rc1_drake.measurements import load_trial
     from rc1_drake.replay import Replayer
 
-    campaign = load_campaign(REPO_ROOT / "data" / "paper_campaign")
     replayer = Replayer(load_trial(TRIAL))
-    one = min(replayer.run(Scenario().friction).wall_time_s for _ in range(args.repeats + 1))  # compiles first
+    return min(replayer.run(Scenario().friction).wall_time_s for _ in range(repeats + 1))
+
+
+def diagnosis(args) -> list:
+    from rc1_drake.diagnose import diagnose
+    from rc1_drake.measurements import load_campaign
+
+    campaign = load_campaign(REPO_ROOT / "data" / "paper_campaign")
+    one = one_replay_s(args.repeats)
     start = time.perf_counter()
     result = diagnose(campaign, workers=args.workers)
     wall = time.perf_counter() - start
@@ -263,11 +270,9 @@ def plan(args) -> list:
     from rc1_drake.cli.options import jsonable
     from rc1_drake.design import design_trials
     from rc1_drake.diagnose import diagnose
-    from rc1_drake.measurements import load_campaign, load_trial
-    from rc1_drake.replay import Replayer
+    from rc1_drake.measurements import load_campaign
 
-    replayer = Replayer(load_trial(TRIAL))
-    one = min(replayer.run(Scenario().friction).wall_time_s for _ in range(args.repeats + 1))  # compiles first
+    one = one_replay_s(args.repeats)
     result = diagnose(load_campaign(REPO_ROOT / "data" / "paper_campaign"), workers=args.workers, probe_study=False)
     data = json.loads(json.dumps(result.to_json(), default=jsonable))
     start = time.perf_counter()
@@ -302,12 +307,9 @@ def foreign_campaign():
 
 def foreign(args) -> list:
     from rc1_drake.diagnose import diagnose
-    from rc1_drake.measurements import load_trial
-    from rc1_drake.replay import Replayer
 
     campaign = foreign_campaign()
-    replayer = Replayer(load_trial(TRIAL))
-    one = min(replayer.run(Scenario().friction).wall_time_s for _ in range(args.repeats + 1))  # compiles first
+    one = one_replay_s(args.repeats)
     start = time.perf_counter()
     result = diagnose(campaign, workers=args.workers, start_rates="fit")
     wall = time.perf_counter() - start

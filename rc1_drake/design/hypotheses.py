@@ -82,9 +82,8 @@ def open_hypotheses(diagnosis: dict, where: str = "diagnosis") -> list[Hypothesi
         runner = next((c for c in round_of["candidates"] if c["name"] != accepted and c["status"] != NOT_DETECTABLE
                        and c["name"] not in diagnosis["accepted_effects"]), None)  # fmt: skip
         out = [Hypothesis(accepted, friction, effects, (accepted,))]
-        rivals = ([runner] if runner is not None else []) + helped(
-            round_of["candidates"], [accepted, *diagnosis["accepted_effects"], runner and runner["name"]]
-        )
+        named = [accepted, *diagnosis["accepted_effects"]] + ([runner["name"]] if runner else [])
+        rivals = ([runner] if runner else []) + helped(round_of["candidates"], named)
         for c in rivals[: MAX_HYPOTHESES - 1]:
             rival = _at_strength(_without(effects, accepted), c["name"], _fitted(c))
             out.append(Hypothesis(c["name"], friction, rival, (c["name"],)))
