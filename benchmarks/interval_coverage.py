@@ -48,9 +48,9 @@ PAGE, BLOCK, WRITER = (
 ROWS = rows_file("interval_coverage")
 CHOSE = range(0, 10)  # seeds kept for choosing rules; the table reports seeds from 10 on
 METHODS = ("program", "avs", "diagnose")
-# identify's rows made before this version are tabled apart as "<method>, before": its intervals without the
-# jackknife over failed joints (sysid.stats.uncertainty).
-VERSION = "2026-12-02"
+# identify's rows of this version carry its profile-likelihood intervals (sysid.profile); earlier rows are kept in the
+# rows file (their figures in docs/findings.md (31), (34)) and not tabled.
+VERSION = "2026-12-03"
 LAW = "+failed-joint-law"  # a diagnosis with the failed joints' law fitted as nuisance (diagnose's failed_joint_law)
 HIDDEN = ("none", "wheel_toe")
 J7_BIAS_DEG = next(c.bias_deg for c in PAPER_DESIGN if c.bias_deg)
@@ -119,7 +119,10 @@ def campaign_of(seed: int, hidden: str, out: Path):
 def _estimates_identify(result) -> dict:
     u = result.uncertainty
     rows = zip(u.names, u.values, u.standard_errors, u.noise_standard_errors, u.identifiable, strict=True)
-    return {n: {"value": v, "se": se, "noise_se": nse, "interval": bool(ok)} for n, v, se, nse, ok in rows}
+    out = {n: {"value": v, "se": se, "noise_se": nse, "interval": bool(ok)} for n, v, se, nse, ok in rows}
+    for n, ends, sides in zip(u.names, u.profile_intervals, u.profile_open, strict=True):
+        out[n] |= {"profile": ends, "profile_open": sides}
+    return out
 
 
 def _estimates_diagnose(result) -> dict:
@@ -215,6 +218,22 @@ def intervals(rows: list) -> tuple:
     return given, held, before, before_held
 
 
+def profiles(rows: list, names=None) -> tuple:
+    """(profile intervals given, of which hold the truth, of which are bounded on both sides) over `rows`' coefficients
+    (`names`: those alone)."""
+    given = held = closed = 0
+    for row in rows:
+        truth = truths(row)
+        for name, estimate in row["estimates"].items():
+            if "profile" not in estimate or name not in truth or (names and name not in names):
+                continue
+            (low, high), sides = estimate["profile"], estimate["profile_open"]
+            given += 1
+            held += low <= truth[name] <= high
+            closed += not any(sides)
+    return given, held, closed
+
+
 def mu_lat_kept(row: dict) -> float | None:
     """The mu_lat a run ended with: fitted or held (identify), the final model's (diagnose; rows before 2026-12-02
     kept only its free coordinates)."""
@@ -239,7 +258,7 @@ NOT_LANDED = (  # the rows' variants: docs/findings.md (34), (35)
     "search judged without failures (not landed)",
     "failed-joint law, its stop inside a stiff limit (not landed)",
 )
-TABLED = [m + s for m in METHODS for s in ("", ", failed-joint law", ", before")] + [
+TABLED = [m for m in METHODS] + ["diagnose, failed-joint law"] + [
     f"diagnose, {v}" for v in NOT_LANDED
 ]
 
@@ -253,11 +272,13 @@ def table(rows: list) -> str:
         " The 95% intervals a report gives (its identifiable coefficients; a diagnosis's free friction and accepted"
         " effects) and how many hold the truth; before them, those the sandwich alone gave (every residual"
         " independent, identifiable under 30%: before issue 67); mu_lat within 25% of the truth; the toe found, and"
-        " its interval holding:",
+        " its interval holding; identify's profile-likelihood intervals (sysid.profile: one for every coefficient, open"
+        " to its bound where the data do not bound it), how many hold the truth and how many are bounded on both"
+        " sides, and mu_lat's alone:",
         "",
-        "| method | hidden | campaigns | sandwich alone: given, hold | reported: given, hold | mu_lat within 25% "
-        "| toe found, holds | median min |",
-        "|---|---|---|---|---|---|---|---|",
+        "| method | hidden | campaigns | sandwich alone: given, hold | reported: given, hold | profile: given, hold, "
+        "two-sided | mu_lat's profile holds | mu_lat within 25% | toe found, holds | median min |",
+        "|---|---|---|---|---|---|---|---|---|---|",
     ]
     for method in TABLED:
         for hidden in HIDDEN:
@@ -277,11 +298,15 @@ def table(rows: list) -> str:
                 else f"{len(found)} of {len(mine)}, {inside}"
             )
             before_text = f"{before}, {before_held}" if not method.startswith("diagnose") else "-"
+            p_given, p_held, p_closed = profiles(mine)
+            profile_text = f"{p_given}, {p_held}, {p_closed}" if p_given else "-"
+            m_given, m_held, _ = profiles(mine, ["mu_lat"])
+            mu_text = f"{m_held} of {m_given}" if m_given else "-"
             timed = [r["wall_s"] for r in mine if not r.get("shared_cpu")]  # alone on the machine
             minutes = f"{float(np.median(timed)) / 60:.1f}" if timed else "- (shared CPU)"
             lines.append(
-                f"| {method} | {hidden} | {len(mine)} | {before_text} | {given}, {held} | {close} | "
-                f"{toe_text} | {minutes} |"
+                f"| {method} | {hidden} | {len(mine)} | {before_text} | {given}, {held} | {profile_text} | {mu_text} | "
+                f"{close} | {toe_text} | {minutes} |"
             )
     return "\n".join(lines)
 
