@@ -258,9 +258,7 @@ NOT_LANDED = (  # the rows' variants: docs/findings.md (34), (35)
     "search judged without failures (not landed)",
     "failed-joint law, its stop inside a stiff limit (not landed)",
 )
-TABLED = [m for m in METHODS] + ["diagnose, failed-joint law"] + [
-    f"diagnose, {v}" for v in NOT_LANDED
-]
+TABLED = [m for m in METHODS] + ["diagnose, failed-joint law"] + [f"diagnose, {v}" for v in NOT_LANDED]
 
 
 def table(rows: list) -> str:

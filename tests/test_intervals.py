@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from rc1_drake.config import FRICTION_NAMES, Z95, Friction
-from rc1_drake.sysid.residual import PATH_CHANNEL
 from rc1_drake.sysid.profile import CHI2_95, LOG_STEPS, crossing, walk
+from rc1_drake.sysid.residual import PATH_CHANNEL
 from rc1_drake.sysid.stats import trial_jackknife, uncertainty
 
 
