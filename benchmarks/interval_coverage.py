@@ -48,8 +48,8 @@ PAGE, BLOCK, WRITER = (
 ROWS = rows_file("interval_coverage")
 CHOSE = range(0, 10)  # seeds kept for choosing rules; the table reports seeds from 10 on
 METHODS = ("program", "avs", "diagnose")
-# identify's rows of this version carry its profile-likelihood intervals (sysid.profile); earlier rows are kept in the
-# rows file (their figures in docs/findings.md (31), (34)) and not tabled.
+# identify's rows of this version carry its profile-likelihood intervals (sysid.profile), the diagnosis's intervals
+# the friction it holds unidentified (diagnose.loop.CONSIDER_LOG_SD); earlier rows stay in the rows file (method_of).
 VERSION = "2026-12-03"
 LAW = "+failed-joint-law"  # a diagnosis with the failed joints' law fitted as nuisance (diagnose's failed_joint_law)
 HIDDEN = ("none", "wheel_toe")
@@ -149,7 +149,8 @@ def measure(seed: int, hidden: str, method: str, args) -> dict:
         estimates = _estimates_diagnose(result)
         extra = {"verdict": str(result.verdict), "accepted": result.accepted, "version": VERSION + law,
                  "final_friction": dataclasses.asdict(result.friction),
-                 "friction_search": result.friction_search}  # fmt: skip
+                 "friction_search": result.friction_search, "considered": result.considered,
+                 "considered_variance": result.considered_variance}  # fmt: skip
     else:
         iterations = 3 if method == "avs" else 10
         result = identify(
@@ -243,22 +244,19 @@ def mu_lat_kept(row: dict) -> float | None:
 
 
 def method_of(row: dict) -> str:
-    """The row's method, with its variant where it has one: ", before" for identify's rows made before VERSION, ",
-    failed-joint law" for a diagnosis with the failed joints' law fitted, a row's own "variant" (rows of a rule that
-    did not land, kept as measured). The default diagnosis decides today as before VERSION: its rows of any version."""
+    """The row's method, with its variant where it has one: ", before" for rows made before VERSION (identify's
+    without the profile intervals, not tabled; the diagnosis's without the held friction's uncertainty, which decides
+    as today), ", failed-joint law" for a diagnosis with the failed joints' law fitted, a row's own "variant" (rows of a
+    rule that did not land, kept as measured: docs/findings.md (34), (35); not tabled)."""
     if row.get("variant"):
         return f"{row['method']}, {row['variant']}"
     version = row.get("version")
     if version == VERSION + LAW:
         return row["method"] + ", failed-joint law"
-    return row["method"] if version == VERSION or row["method"] == "diagnose" else row["method"] + ", before"
+    return row["method"] if version == VERSION else row["method"] + ", before"
 
 
-NOT_LANDED = (  # the rows' variants: docs/findings.md (34), (35)
-    "search judged without failures (not landed)",
-    "failed-joint law, its stop inside a stiff limit (not landed)",
-)
-TABLED = [m for m in METHODS] + ["diagnose, failed-joint law"] + [f"diagnose, {v}" for v in NOT_LANDED]
+TABLED = [*METHODS, "diagnose, before", "diagnose, failed-joint law"]
 
 
 def table(rows: list) -> str:

@@ -27,7 +27,7 @@ from rc1_drake.diagnose import fit as fit_module
 from rc1_drake.diagnose import verdict as verdicts
 from rc1_drake.diagnose.coordinates import START, effect_coordinates, friction_coordinates, model_at
 from rc1_drake.diagnose.decide import decide
-from rc1_drake.diagnose.fit import bounded_least_squares, fit
+from rc1_drake.diagnose.fit import bounded_least_squares, considered_variance, fit
 from rc1_drake.diagnose.linearize import (
     PAIRED_DRAWS,
     Linearization,
@@ -1008,3 +1008,19 @@ def test_a_failed_joints_dry_torque_fitted_as_nuisance_is_no_missing_effect_and_
     assert {c.name for r in result.rounds for c in r.candidates} <= {"wheel_toe", "head_drag"}
     value, se = result.final_coordinates["joint_coulomb_Nm"]
     assert abs(value - 0.3) <= Z95 * se, (value, se)
+
+
+def test_a_held_coefficient_known_to_a_factor_widens_an_effect_by_the_shift_its_error_makes():
+    """A held coordinate a (at 0.5) correlated with the effect's b: where the truth's a is 20% off, b's fit moves by
+    0.2 times the square root of the variance considered_variance carries per unit of log-error, exactly (linear); with
+    a uncorrelated with b, nothing is carried."""
+    rng = np.random.default_rng(4)
+    a, noise = rng.normal(size=(4, 12)), rng.normal(size=(4, 12))
+    b = 0.6 * a + 0.8 * noise
+    lin = _linearization({"a": list(a), "b": list(b)}, list(-(0.2 * 0.5) * a))  # the truth: a 20% above 0.5, b 0
+    lin.coordinates[0] = dataclasses.replace(lin.coordinates[0], value=0.5)
+    carried = considered_variance(lin, ["b"], ["a"])
+    assert abs(fit(lin, ["b"]).values[0]) == pytest.approx(0.2 * math.sqrt(carried[0]), rel=1e-6)
+    apart = _linearization({"a": list(a), "b": list(noise - a * (a * noise).sum() / (a * a).sum())}, list(0 * a))
+    apart.coordinates[0] = dataclasses.replace(apart.coordinates[0], value=0.5)
+    assert considered_variance(apart, ["b"], ["a"])[0] == pytest.approx(0.0, abs=1e-20)

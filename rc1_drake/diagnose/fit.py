@@ -194,6 +194,23 @@ def fit(lin: Linearization, names: list[str]) -> Fit:
     )
 
 
+def considered_variance(lin: Linearization, names: list[str], considered: list[str]) -> np.ndarray:
+    """Per coordinate of `names`, the variance its linear fit takes from the `considered` coordinates, held at their
+    values though known only to a factor e (one standard deviation of their log): each one's uncertainty carried
+    through the fit's columns, the trials' starts profiled out as the fit does (a consider covariance, as orbit
+    determination carries the parameters it does not estimate). Times s^2, a factor e^s. A start's is left at 0."""
+    out = np.zeros(len(names))
+    coords = [lin.coordinate(n) for n in names + considered]
+    physics = [i for i, c in enumerate(coords[: len(names)]) if c.start_of is None]
+    if not considered or not physics:
+        return out
+    x, _, _, _, _ = _profiled_rows(lin, coords, list(range(len(lin.trials))))
+    own, held = x[:, : len(physics)], x[:, len(physics) :]
+    carried = -np.linalg.pinv(own) @ held * np.array([c.value for c in coords[len(names) :]])
+    out[physics] = np.sum(carried**2, axis=1)
+    return out
+
+
 POLISH_STEPS = 3  # Gauss-Newton steps on an accepted model, while simulation confirms them (polish)
 
 

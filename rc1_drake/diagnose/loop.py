@@ -2,6 +2,7 @@
 while what is left is not the noise; then the verdict."""
 
 import dataclasses
+import math
 import os
 import time
 
@@ -16,7 +17,7 @@ from ..sysid.residual import trial_residual
 from ..sysid.stats import interval95
 from .coordinates import START, physics_names
 from .decide import NOT_DETECTABLE, decide, held_out_by_simulation, rank, screen_friction, unrefitted
-from .fit import fit, polish, starts_fitted
+from .fit import considered_variance, fit, polish, starts_fitted
 from .linearize import Linearization, linearize, moved, relinearize, with_replay_error
 from .probe import suggest_experiments
 from .replays import INPUT_NOISE_SAMPLES, evaluate, replay_and_score
@@ -34,6 +35,9 @@ CHECKED_CANDIDATES = 2  # of those, the best significant ones checked by simulat
 # A powered-off servo's law, unknown on every real robot: with `failed_joint_law`, these effects' coordinates are
 # nuisance in every fit of a campaign with failed joints (issue 67 item 3), not candidates.
 FAILED_JOINT_LAW = ("joint_coulomb_friction", "compliant_stop")
+# A friction coefficient no trial identifies is held where it is, known to a factor 2 (one standard deviation of its
+# log: a floor's friction is rarely known better before it is measured); every reported interval carries that.
+CONSIDER_LOG_SD = math.log(2.0)
 
 
 def diagnose(
@@ -260,6 +264,7 @@ class _Search:
     replay_error: str = "paired"  # at each accepted and polished model: one of REPLAY_ERROR_MODES
     friction_search: str = ""  # whether the friction was searched at the start, and what was decided (far_friction)
     scatter: Scatter | None = None  # the failed joint's scatter columns, where a misfit takes it as noise
+    screened: list[str] = dataclasses.field(default_factory=list)  # the friction coefficients not held by the user
 
     @classmethod
     def begin(cls, lin, evaluator, trials, replayed, held, samples, thresholds, law=()) -> "_Search":
@@ -300,6 +305,7 @@ class _Search:
         model_names = nuisance + list(free) + law_names
         search = cls(lin, evaluator, trials, replayed, nuisance, free, model_names, samples, thresholds, waterfall)
         search.friction_search = note
+        search.screened = names
         search.scatter = _scatter(lin, evaluator, thresholds)  # at the model the rounds start from
         return search
 
@@ -473,9 +479,11 @@ class _Search:
         )
         simulated = [lin.corrected(k, trial_residual(t, report.runs[t.trial_id])) for k, t in enumerate(lin.trials)]
         left = misfit(lin, simulated, len(physics_names(lin, self.model_names)), self.thresholds, self.scatter)
+        considered = [n for n in self.screened if n not in self.free]
+        carried = considered_variance(lin, final_fit.names, considered)
         final = {
-            n: [float(lin.coordinate(n).value), float(se)]
-            for n, se in zip(final_fit.names, final_fit.standard_errors, strict=True)
+            n: [float(lin.coordinate(n).value), math.sqrt(float(se) ** 2 + CONSIDER_LOG_SD**2 * c)]
+            for n, se, c in zip(final_fit.names, final_fit.standard_errors, carried, strict=True)
         }
         not_detectable = list(unseen)
         for c in (c for r in self.rounds for c in r.candidates if c.status == NOT_DETECTABLE):
@@ -514,5 +522,9 @@ class _Search:
             friction_search=self.friction_search,
             final_coordinates={n: v for n, v in final.items() if n not in self.nuisance},
             starts={n: v for n, v in final.items() if n in self.nuisance},
+            considered=considered,
+            considered_variance={
+                n: float(c) for n, c in zip(final_fit.names, carried, strict=True) if n not in self.nuisance
+            },
         )
         return result, left

@@ -109,6 +109,10 @@ class Diagnosis:
     wall_s: float
     final_coordinates: dict[str, list[float]] = dataclasses.field(default_factory=dict)  # name -> [value, se]
     starts: dict[str, list[float]] = dataclasses.field(default_factory=dict)  # "<trial>:<rate>" -> [value, se]
+    # the friction coefficients no trial identified, held (loop.CONSIDER_LOG_SD), and per final coordinate the
+    # variance they add to its interval at a factor e (fit.considered_variance), already in final_coordinates' se
+    considered: list[str] = dataclasses.field(default_factory=list)
+    considered_variance: dict[str, float] = dataclasses.field(default_factory=dict)
     stop_reason: str = ""
     friction_search: str = ""  # at the start, where no coefficient was identified (loop.far_friction)
     resumed: int = 0  # of the simulations, results taken from a checkpoint of an interrupted run
@@ -154,6 +158,8 @@ class Diagnosis:
             "error_after": self.waterfall[-1] if self.waterfall else None,
             "final_coordinates": self.final_coordinates,
             "starts": self.starts,
+            "considered": self.considered,
+            "considered_variance": self.considered_variance,
             "stop_reason": self.stop_reason,
             "friction_search": self.friction_search,
             "waterfall": self.waterfall,
@@ -179,7 +185,12 @@ class Diagnosis:
             f"verdict: {self.verdict}: {self.explanation}",
             *(f"  {a} or {b}: {text}" for a, b, text in open_pairs(self.rounds)),
             rate_text(self.verdict, trials=self.trials),
-            f"added: {', '.join(added) + ' (95%)' if added else 'nothing'}",
+            f"added: {', '.join(added) + ' (95%)' if added else 'nothing'}"
+            + (
+                f"; its interval carries {', '.join(self.considered)}, held: no trial identifies them"
+                if added and self.considered
+                else ""
+            ),
         ]
         risen = []
         if self.waterfall:

@@ -2,8 +2,10 @@
 profiled at every step, where the sum of squares is not quadratic in it (a coefficient the data bound on one side
 only, a fit far from where the data are) and the Wald interval's symmetric reach misleads.
 
-The profile of parameter k: p(v) = min over the others |r(v, others)|^2, the others moved by the Gauss-Newton step of
-their columns at the fit (one replay a step: r(v) with the others at the fit, projected off those columns). Its
+The profile of parameter k: p(v) = min over the others |r(v, others)|^2, from replays: at each v the others start
+where the nearest value walked left them, take one Gauss-Newton step of their columns at the fit (within their bounds,
+each by at most a factor 2, or a tenth of its range), and keep it where the replays confirm it (OthersRefitted: two
+replays a value, never a linear extrapolation, which far from the fit finds fits no replay has). Its
 deviance p(v) - min p is taken in the units of the interval the fit reports (`sysid.stats.uncertainty`: the sandwich
 with each channel's variance, widened by the jackknives), as a composite likelihood is adjusted for what the
 residuals' independence assumes away: times [(J^T J)^-1]_kk / se_k^2, so that where p is quadratic the profile gives
@@ -51,14 +53,37 @@ def crossing(values, deviances, threshold: float = CHI2_95) -> tuple[float, bool
     return float(values[-1]), True
 
 
-def profiled_sum(r, others) -> float:
-    """|r|^2 after the least-squares step of the columns `others` (rows of r; empty: |r|^2)."""
-    r = np.asarray(r, dtype=float)
-    if others.size == 0:
-        return float(r @ r)
-    step = np.linalg.lstsq(others, r, rcond=1e-9)[0]
-    left = r - others @ step
-    return float(left @ left)
+class OthersRefitted:
+    """p(v) for one parameter (`name`): |r|^2 of the replays with it at v and the others refitted (the module's
+    docstring). `residual_at(values)`: the residuals with the parameters of `values` (name -> value) set; `fit`: every
+    parameter's value at the fit; `columns`: the others' (in `fit`'s order, `name` left out); `bounds`: name ->
+    (lower, upper, positive)."""
+
+    def __init__(self, residual_at, name: str, fit: dict, columns, bounds: dict):
+        self.residual_at, self.name, self.columns, self.bounds = residual_at, name, columns, bounds
+        self.others = [n for n in fit if n != name]
+        self.left = {fit[name]: np.array([fit[n] for n in self.others])}  # v -> the others where v left them
+
+    def __call__(self, v: float, r=None) -> float:
+        base = self.left[min(self.left, key=lambda u: abs(u - v))]
+        r = self.residual_at(self._values(v, base)) if r is None else r
+        step = np.linalg.lstsq(self.columns, -r, rcond=1e-9)[0] if self.others else np.zeros(0)
+        moved = np.array([self._trusted(n, b, b + d) for n, b, d in zip(self.others, base, step, strict=True)])
+        there = self.residual_at(self._values(v, moved)) if self.others else r
+        better = float(there @ there) < float(r @ r)
+        self.left[v] = moved if better else base
+        return float(there @ there) if better else float(r @ r)
+
+    def _values(self, v, others) -> dict:
+        return {self.name: v, **dict(zip(self.others, map(float, others), strict=True))}
+
+    def _trusted(self, name: str, base: float, value: float) -> float:
+        lower, upper, positive = self.bounds[name]
+        if positive and base > 0:
+            value = min(max(value, 0.5 * base), 2.0 * base)
+        else:
+            value = min(max(value, base - 0.1 * (upper - lower)), base + 0.1 * (upper - lower))
+        return min(max(value, lower), upper)
 
 
 def deviance_scale(jac, standard_errors, r) -> np.ndarray:
@@ -87,29 +112,27 @@ def walk(value: float, lower: float, upper: float, positive: bool, side: int) ->
 
 
 def profile_interval(
-    evaluate: Callable[[float], np.ndarray],
+    profiled: Callable,
     value: float,
-    r_fit,
-    others,
     scale: float,
     lower: float,
     upper: float,
     positive: bool = True,
     threshold: float = CHI2_95,
+    r_fit=None,
 ) -> ProfileInterval:
-    """The profile interval of one parameter at `value` (the fit's; its residuals `r_fit`), `evaluate(v)` giving the
-    residuals with it at v and the others at the fit, `others` their columns there, `scale` its deviance's
-    (deviance_scale). Each side walks out until the adjusted deviance, from the least profile seen, passes
-    `threshold`, or to the bound; each end is then replayed until it is found within 0.5%.
-    Costs one evaluation a step: 4-10 where the profile is smooth, up to 28."""
-    points = {value: profiled_sum(r_fit, others)}
+    """The profile interval of one parameter at `value` (the fit's), `profiled(v)` its profile (OthersRefitted; at
+    the fit given its residuals `r_fit`), `scale` its deviance's (deviance_scale). Each side walks out until the
+    adjusted deviance, from the least profile seen, passes `threshold`, or to the bound; each end is then replayed
+    until it is found within 0.5%. Costs a profile a step: 4-10 where the profile is smooth, up to 28."""
+    points = {value: profiled(value, r_fit) if r_fit is not None else profiled(value)}
     for side in (-1, 1):
         for v in walk(value, lower, upper, positive, side):
-            points[v] = profiled_sum(evaluate(v), others)
+            points[v] = profiled(v)
             if (points[v] - min(points.values())) * scale > threshold:
                 break
     for side in (0, 1):
-        _refine(points, lambda v: profiled_sum(evaluate(v), others), scale, threshold, side)
+        _refine(points, profiled, scale, threshold, side)
     (low, low_open), (high, high_open) = _ends(points, scale, threshold)
     least = min(points.values())
     return ProfileInterval(

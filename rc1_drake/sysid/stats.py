@@ -10,7 +10,7 @@ from scipy.stats import chi2
 from ..config import Z95, Friction
 from .input_noise import INPUT_NOISE_SAMPLES
 from .parameters import DEFAULT_PARAMETERS, difference_step, parameter_value, with_values
-from .profile import deviance_scale, profile_interval
+from .profile import OthersRefitted, deviance_scale, profile_interval
 from .residual import FINAL_CHANNEL
 
 
@@ -226,15 +226,18 @@ def profile_intervals(residuals, friction, effects, free, r0, jac, standard_erro
     """Each of `free`'s profile intervals at (`friction`, `effects`), whose residuals are r0 and Jacobian `jac`, in
     the units of the reported `standard_errors` (sysid.profile)."""
     scales = deviance_scale(jac, standard_errors, r0)
+    fit = {p.name: parameter_value(p.name, friction, effects) for p in free}
+    bounds = {p.name: (p.lower, p.upper, p.is_friction) for p in free}
+
+    def residual_at(values):
+        return residuals(*with_values(friction, effects, values))
+
     out = []
     for k, p in enumerate(free):
-
-        def at(v, name=p.name):
-            return residuals(*with_values(friction, effects, {name: v}))
-
-        others = np.delete(jac, k, axis=1)
-        value = parameter_value(p.name, friction, effects)
-        out.append(profile_interval(at, value, r0, others, scales[k], p.lower, p.upper, positive=p.is_friction))
+        profiled = OthersRefitted(residual_at, p.name, fit, np.delete(jac, k, axis=1), bounds)
+        out.append(
+            profile_interval(profiled, fit[p.name], scales[k], p.lower, p.upper, positive=p.is_friction, r_fit=r0)
+        )
     return out
 
 
