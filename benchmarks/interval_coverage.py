@@ -36,6 +36,7 @@ from doc_blocks import REPO_ROOT, append_row, check_block, load_rows, rows_file,
 
 from rc1_drake.config import FRICTION_NAMES, Z95, Friction, Stop
 from rc1_drake.diagnose import diagnose
+from rc1_drake.diagnose.loop import CONSIDER_LOG_SD
 from rc1_drake.identify import identify
 from rc1_drake.measurements import load_campaign
 from rc1_drake.synthesize import PAPER_DESIGN, Case, Noise, Variation, synthesize_campaign
@@ -48,9 +49,10 @@ PAGE, BLOCK, WRITER = (
 ROWS = rows_file("interval_coverage")
 CHOSE = range(0, 10)  # seeds kept for choosing rules; the table reports seeds from 10 on
 METHODS = ("program", "avs", "diagnose")
-# identify's rows of this version carry its profile-likelihood intervals (sysid.profile), the diagnosis's intervals
-# the friction it holds unidentified (diagnose.loop.CONSIDER_LOG_SD); earlier rows stay in the rows file (method_of).
-VERSION = "2026-12-03"
+# The rows of today's code, by method: identify's with the jackknife over failed joints (sysid.stats.uncertainty), the
+# diagnosis's with the friction it holds unidentified carried in its intervals (diagnose.loop.CONSIDER_LOG_SD);
+# earlier rows stay in the rows file (method_of).
+VERSIONS = {"program": "2026-12-02", "avs": "2026-12-02", "diagnose": "2026-12-03"}
 LAW = "+failed-joint-law"  # a diagnosis with the failed joints' law fitted as nuisance (diagnose's failed_joint_law)
 HIDDEN = ("none", "wheel_toe")
 J7_BIAS_DEG = next(c.bias_deg for c in PAPER_DESIGN if c.bias_deg)
@@ -119,10 +121,7 @@ def campaign_of(seed: int, hidden: str, out: Path):
 def _estimates_identify(result) -> dict:
     u = result.uncertainty
     rows = zip(u.names, u.values, u.standard_errors, u.noise_standard_errors, u.identifiable, strict=True)
-    out = {n: {"value": v, "se": se, "noise_se": nse, "interval": bool(ok)} for n, v, se, nse, ok in rows}
-    for n, ends, sides in zip(u.names, u.profile_intervals, u.profile_open, strict=True):
-        out[n] |= {"profile": ends, "profile_open": sides}
-    return out
+    return {n: {"value": v, "se": se, "noise_se": nse, "interval": bool(ok)} for n, v, se, nse, ok in rows}
 
 
 def _estimates_diagnose(result) -> dict:
@@ -147,7 +146,7 @@ def measure(seed: int, hidden: str, method: str, args) -> dict:
         result = diagnose(campaign, workers=args.workers, probe_study=False, start_rates="fit", checkpoint=checkpoint,
                           failed_joint_law=args.failed_joint_law)  # fmt: skip
         estimates = _estimates_diagnose(result)
-        extra = {"verdict": str(result.verdict), "accepted": result.accepted, "version": VERSION + law,
+        extra = {"verdict": str(result.verdict), "accepted": result.accepted, "version": VERSIONS[method] + law,
                  "final_friction": dataclasses.asdict(result.friction),
                  "friction_search": result.friction_search, "considered": result.considered,
                  "considered_variance": result.considered_variance}  # fmt: skip
@@ -159,7 +158,7 @@ def measure(seed: int, hidden: str, method: str, args) -> dict:
         )  # fmt: skip
         estimates = _estimates_identify(result)
         extra = {"residual_rms": result.uncertainty.residual_rms, "held": getattr(result.result, "held", []),
-                 "version": VERSION}  # fmt: skip
+                 "version": VERSIONS[method]}  # fmt: skip
     truths = dataclasses.asdict(truth.friction) | {
         k: v for k, v in diagnosis.hidden_effects(None if hidden == "none" else hidden, 1.0).items()
     }
@@ -201,38 +200,30 @@ def truths(row: dict) -> dict:
 
 
 def intervals(rows: list) -> tuple:
-    """(reported intervals, of which hold the truth; the intervals the sandwich alone would have reported, before
-    issue 67: a coefficient fitted whose sandwich standard error is under 30% of it, and of which hold it)."""
+    """(reported intervals, of which hold the truth; the narrower intervals of before, and of which hold it: for
+    identify, those the sandwich alone would have reported before issue 67 (a coefficient fitted whose sandwich
+    standard error is under 30% of it); for a diagnosis, its intervals without the friction it held unidentified).
+    An effect accepted where none is hidden is judged against its nested value, 0."""
     given = held = before = before_held = 0
     for row in rows:
-        truth = truths(row)
+        # an effect the truth does not have is there at its nested value, 0 (a toe accepted on a null is scored)
+        truth = {n: 0.0 for n in row["estimates"] if n not in FRICTION_NAMES} | truths(row)
         for name, estimate in row["estimates"].items():
             if name not in truth:
                 continue
             if estimate["interval"]:
                 given += 1
                 held += bool(holds(estimate, truth[name]))
+            if "considered_variance" in row and estimate["interval"]:  # the same, without the held friction's part
+                carried = CONSIDER_LOG_SD**2 * row["considered_variance"].get(name, 0.0)
+                narrower = {"value": estimate["value"], "se": math.sqrt(max(estimate["se"] ** 2 - carried, 0.0))}
+                before += 1
+                before_held += bool(holds(narrower, truth[name]))
             noise = estimate.get("noise_se")
             if noise is not None and name not in row.get("held", []) and noise < 0.3 * abs(estimate["value"]):
                 before += 1
                 before_held += bool(holds(estimate, truth[name], "noise_se"))
     return given, held, before, before_held
-
-
-def profiles(rows: list, names=None) -> tuple:
-    """(profile intervals given, of which hold the truth, of which are bounded on both sides) over `rows`' coefficients
-    (`names`: those alone)."""
-    given = held = closed = 0
-    for row in rows:
-        truth = truths(row)
-        for name, estimate in row["estimates"].items():
-            if "profile" not in estimate or name not in truth or (names and name not in names):
-                continue
-            (low, high), sides = estimate["profile"], estimate["profile_open"]
-            given += 1
-            held += low <= truth[name] <= high
-            closed += not any(sides)
-    return given, held, closed
 
 
 def mu_lat_kept(row: dict) -> float | None:
@@ -244,19 +235,19 @@ def mu_lat_kept(row: dict) -> float | None:
 
 
 def method_of(row: dict) -> str:
-    """The row's method, with its variant where it has one: ", before" for rows made before VERSION (identify's
-    without the profile intervals, not tabled; the diagnosis's without the held friction's uncertainty, which decides
-    as today), ", failed-joint law" for a diagnosis with the failed joints' law fitted, a row's own "variant" (rows of a
-    rule that did not land, kept as measured: docs/findings.md (34), (35); not tabled)."""
+    """The row's method, with its variant where it has one: ", before" for rows made before VERSIONS (identify's
+    before the jackknife over failed joints, not tabled; the diagnosis's without the held friction's uncertainty,
+    which decides as today), ", failed-joint law" for a diagnosis with the failed joints' law fitted, a row's own
+    "variant" (rows of a rule that did not land, kept as measured: docs/findings.md (34), (35); not tabled)."""
     if row.get("variant"):
         return f"{row['method']}, {row['variant']}"
     version = row.get("version")
-    if version == VERSION + LAW:
+    if version == VERSIONS[row["method"]] + LAW:
         return row["method"] + ", failed-joint law"
-    return row["method"] if version == VERSION else row["method"] + ", before"
+    return row["method"] if version == VERSIONS[row["method"]] else row["method"] + ", before"
 
 
-TABLED = [*METHODS, "diagnose, before", "diagnose, failed-joint law"]
+TABLED = [*METHODS, "diagnose, failed-joint law"]
 
 
 def table(rows: list) -> str:
@@ -266,15 +257,14 @@ def table(rows: list) -> str:
         f"Measured by `python {WRITER}` over reported seeds {seeds[0] if seeds else '-'}-{seeds[-1] if seeds else '-'}"
         f" ({len(seeds)} truths, each with nothing and a {diagnosis.REFERENCE['wheel_toe'][1]:g} deg wheel toe hidden)."
         " The 95% intervals a report gives (its identifiable coefficients; a diagnosis's free friction and accepted"
-        " effects) and how many hold the truth; before them, those the sandwich alone gave (every residual"
-        " independent, identifiable under 30%: before issue 67); mu_lat within 25% of the truth; the toe found, and"
-        " its interval holding; identify's profile-likelihood intervals (sysid.profile: one for every coefficient, open"
-        " to its bound where the data do not bound it), how many hold the truth and how many are bounded on both"
-        " sides, and mu_lat's alone:",
+        " effects) and how many hold the truth (an effect accepted where none is hidden, against 0); before them, the"
+        " narrower intervals of before: identify's sandwich alone (every residual independent, identifiable under 30%:"
+        " before issue 67), the diagnosis's without the friction it holds unidentified (its intervals carry it, known"
+        " to a factor 2, since 2026-12-03); mu_lat within 25% of the truth; the toe found, and its interval holding:",
         "",
-        "| method | hidden | campaigns | sandwich alone: given, hold | reported: given, hold | profile: given, hold, "
-        "two-sided | mu_lat's profile holds | mu_lat within 25% | toe found, holds | median min |",
-        "|---|---|---|---|---|---|---|---|---|---|",
+        "| method | hidden | campaigns | narrower: given, hold | reported: given, hold | mu_lat within 25% "
+        "| toe found, holds | median min |",
+        "|---|---|---|---|---|---|---|---|",
     ]
     for method in TABLED:
         for hidden in HIDDEN:
@@ -293,16 +283,12 @@ def table(rows: list) -> str:
                 if hidden == "none" or not method.startswith("diagnose")
                 else f"{len(found)} of {len(mine)}, {inside}"
             )
-            before_text = f"{before}, {before_held}" if not method.startswith("diagnose") else "-"
-            p_given, p_held, p_closed = profiles(mine)
-            profile_text = f"{p_given}, {p_held}, {p_closed}" if p_given else "-"
-            m_given, m_held, _ = profiles(mine, ["mu_lat"])
-            mu_text = f"{m_held} of {m_given}" if m_given else "-"
+            before_text = f"{before}, {before_held}" if before else "-"
             timed = [r["wall_s"] for r in mine if not r.get("shared_cpu")]  # alone on the machine
             minutes = f"{float(np.median(timed)) / 60:.1f}" if timed else "- (shared CPU)"
             lines.append(
-                f"| {method} | {hidden} | {len(mine)} | {before_text} | {given}, {held} | {profile_text} | {mu_text} | "
-                f"{close} | {toe_text} | {minutes} |"
+                f"| {method} | {hidden} | {len(mine)} | {before_text} | {given}, {held} | {close} | "
+                f"{toe_text} | {minutes} |"
             )
     return "\n".join(lines)
 

@@ -594,7 +594,7 @@ def test_a_visible_hidden_effect_is_ranked_first_accepted_and_recovered(
     verdict, rate, added, error, left = result.format().splitlines()[:5]
     assert verdict.startswith("verdict: effect_found: accepted " + effect)
     assert rate.startswith(("measured on the paper's design", "measured rate of effect_found on the paper's design"))
-    assert added.startswith(f"added: {key}={final:.3g}+-") and added.endswith("(95%)")
+    assert added.startswith(f"added: {key}={final:.3g}+-") and "(95%" in added and added.endswith(")")
     assert error.startswith(f"mean Eq. 6 error: {result.waterfall[0]['mean_eq6_error_pct']:.2f}% (start")
     assert left.startswith("trials still unexplained: ")
 

@@ -100,13 +100,10 @@ def test_identify_command_writes_the_friction_file_that_run_reads(campaign, tmp_
         == 0
     )
     printed = capsys.readouterr().out
-    assert "Param." in printed and "std. error" in printed and "95% profile interval" in printed
+    assert "Param." in printed and "std. error" in printed
     record = json.loads((tmp_path / "avs.json").read_text())
     assert record["iterations"][0]["parameter"] == "mu_lat" and record["uncertainty"]["names"] == ["mu_lat"]
-    (low, high), value = record["uncertainty"]["profile_intervals"][0], record["uncertainty"]["values"][0]
-    assert low < value < high
-    # start, 4 candidates, Jacobian (2), input noise (8), then the profile's walk and its two ends
-    assert 1 + 4 + 2 + 8 + 2 < record["simulations"] <= 1 + 4 + 2 + 8 + 28
+    assert record["simulations"] == 1 + 4 + 2 + 8  # start, 4 candidates, Jacobian (2), input noise (8)
     identified = load_friction_file(out)
     assert main(["run", "--friction-file", str(out), "--time-limit-s", "0.5", "--json", str(tmp_path / "r.json")]) == 0
     assert identified.mu_lat > 0 and (tmp_path / "plots" / "avs_iterations.png").stat().st_size > 5_000

@@ -2,14 +2,12 @@
 identify's uncertainty, identifiability judged where the fit ended, and the step's joint-limit kernel on starts far
 from the data. No replay: linear and hand-made residuals stand in for a campaign's."""
 
-import dataclasses
 import math
 
 import numpy as np
 import pytest
 
 from rc1_drake.config import FRICTION_NAMES, Z95, Friction
-from rc1_drake.sysid.profile import CHI2_95, LOG_STEPS, crossing, walk
 from rc1_drake.sysid.residual import PATH_CHANNEL
 from rc1_drake.sysid.stats import trial_jackknife, uncertainty
 
@@ -205,56 +203,3 @@ def test_a_coefficient_the_data_do_not_see_does_not_swing_the_jackknife_of_one_t
     assert u.identifiable[1] and not u.identifiable[3]
     assert u.standard_errors[1] == pytest.approx(max(u.noise_standard_errors[1], math.sqrt(alone)), rel=1e-6)
     assert u.standard_errors[3] == pytest.approx(u.noise_standard_errors[3], rel=1e-9)
-
-
-def test_the_profile_kernel_interpolates_the_root_of_the_deviance_and_walks_to_the_bound():
-    """Hand values: roots 0, 1, 3 at 1.0, 1.1, 1.3 cross sqrt(3.84) at 1.1 + 0.2 (1.96 - 1) / 2; a walk that never
-    crosses is open at its last value; a walk's steps stay inside the bounds and end on the bound."""
-    target = math.sqrt(CHI2_95)
-    value, open_side = crossing([1.0, 1.1, 1.3], [0.0, 1.0, 9.0])
-    assert not open_side and value == pytest.approx(1.1 + 0.2 * (target - 1.0) / 2.0, rel=1e-12)
-    assert crossing([1.0, 0.5, 0.0], [0.0, 1.0, 2.0]) == (0.0, True)
-    down = walk(0.1, 0.0, 0.5, True, -1)
-    assert down[:-1] == pytest.approx([0.1 * math.exp(-s) for s in LOG_STEPS]) and down[-1] == 0.0
-    assert walk(0.4, 0.0, 0.5, True, 1) == pytest.approx([0.4 * math.exp(0.1), 0.5])
-    assert walk(0.5, 0.0, 0.5, True, 1) == []
-
-
-def test_the_profile_interval_of_a_linear_model_is_its_reported_interval():
-    """Where the sum of squares is quadratic (residuals linear in the coefficients), each profile interval is the
-    reported 95% interval, widened by the jackknife or not: the profile is taken in the reported interval's units."""
-    rng = np.random.default_rng(3)
-    groups = np.repeat(np.arange(6), 40)
-    x = _smooth_design(rng, 6, 40)
-    theta = np.array([getattr(Friction(), n) for n in FRICTION_NAMES])
-    y = x @ theta + 0.002 * _correlated(rng, 6, 40, 0.9)
-    at = Friction(**dict(zip(FRICTION_NAMES, map(float, np.linalg.lstsq(x, y, rcond=None)[0]), strict=True)))
-    u = uncertainty(LinearResiduals(x, y, groups), at, input_noise_samples=0, profile=True)
-    assert any(se > nse * 1.05 for se, nse in zip(u.standard_errors, u.noise_standard_errors, strict=True))
-    for v, se, ends, sides in zip(u.values, u.standard_errors, u.profile_intervals, u.profile_open, strict=True):
-        half = math.sqrt(CHI2_95) * se
-        assert ends == pytest.approx([v - half, v + half], rel=1e-9) and sides == [False, False]
-
-
-class SaturatedResiduals(LinearResiduals):
-    """mu_lat acts only up to 1 (as a lateral friction above what the gait needs, finding (29)): data made at 2."""
-
-    def __call__(self, friction, effects=None):
-        return super().__call__(dataclasses.replace(friction, mu_lat=min(friction.mu_lat, 1.0)), effects)
-
-
-def test_a_coefficient_the_data_bound_from_one_side_gets_a_one_sided_profile_interval():
-    """The fit at mu_lat 2, where the residuals stop moving above 1: the Wald interval has no column to stand on (no
-    interval), the profile bounds mu_lat from below only (open to its bound, 5), holds the truth, and says so."""
-    rng = np.random.default_rng(5)
-    groups = np.repeat(np.arange(6), 40)
-    x = _smooth_design(rng, 6, 40)
-    truth = dataclasses.replace(Friction(), mu_lat=2.0)
-    residuals = SaturatedResiduals(x, np.zeros(240), groups)
-    residuals.y = residuals(truth) + 0.01 * rng.normal(size=240)
-    u = uncertainty(residuals, truth, input_noise_samples=0, profile=True)
-    k = FRICTION_NAMES.index("mu_lat")
-    (low, high), sides = u.profile_intervals[k], u.profile_open[k]
-    assert not math.isfinite(u.standard_errors[k])
-    assert sides == [False, True] and high == 5.0 and 0.9 < low < 1.0
-    assert any(w.startswith("mu_lat: the data bound it only from below") for w in u.warnings())

@@ -81,13 +81,6 @@ def add_identify(sub) -> None:
         fit="fitted once per trial to its first 0.5 s of camera path and IMU, "
         "at the start model, and held through the fit",
     )
-    idn.add_argument(
-        "--no-profile",
-        dest="profile",
-        action="store_false",
-        help="skip the profile-likelihood intervals (each coefficient walked out from the fit, the others profiled: "
-        "2-12 more replays a trial a coefficient)",
-    )
     add_checkpoint(idn, default="<campaign>-identify")
     add_outputs(idn, out_help="write a model file: the identified coefficients and the (fixed) effects")
 
@@ -131,7 +124,6 @@ def cmd_identify(args) -> int:
         progress=progress,
         checkpoint=checkpoint,
         on_fit=keep_fit,
-        profile=args.profile,
     )
     print(result.format())
     if args.json:

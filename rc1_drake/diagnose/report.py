@@ -181,16 +181,12 @@ class Diagnosis:
             for n, (v, se) in self.final_coordinates.items()
             if (owner := coordinate_owner(n)) is not None and owner.name in self.accepted
         ]
+        carried = f", with {', '.join(self.considered)} held unidentified" if self.considered else ""
         lines = [
             f"verdict: {self.verdict}: {self.explanation}",
             *(f"  {a} or {b}: {text}" for a, b, text in open_pairs(self.rounds)),
             rate_text(self.verdict, trials=self.trials),
-            f"added: {', '.join(added) + ' (95%)' if added else 'nothing'}"
-            + (
-                f"; its interval carries {', '.join(self.considered)}, held: no trial identifies them"
-                if added and self.considered
-                else ""
-            ),
+            f"added: {', '.join(added) + ' (95%' + carried + ')' if added else 'nothing'}",
         ]
         risen = []
         if self.waterfall:

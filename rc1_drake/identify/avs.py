@@ -171,13 +171,11 @@ def identify_avs(
     input_noise_samples=INPUT_NOISE_SAMPLES,
     checkpoint=None,
     on_fit=None,
-    profile=False,
 ):
     """AVS on the chosen trials (the model with `effects`, held fixed), then the uncertainty of its
     result (uncertainty(), with `input_noise_samples`): (AvsResult, Uncertainty). `checkpoint`: an
     evaluate.Checkpoint that keeps every replay's result (a rerun resumes). `on_fit(result)`: called as the search
-    ends, before the uncertainty (so that a caller keeps the fit whatever follows). `profile`: the result's
-    profile-likelihood intervals too (sysid.profile)."""
+    ends, before the uncertainty (so that a caller keeps the fit whatever follows)."""
     chosen = campaign.chosen(trials)
     with make_executor(workers=workers or min(os.cpu_count() or 1, len(chosen)), scheduler=scheduler) as executor:
         objective = Eq6Objective(chosen, executor=executor, effects=effects, checkpoint=checkpoint)
@@ -185,9 +183,7 @@ def identify_avs(
         if on_fit:
             on_fit(result)
         residuals = CampaignResiduals(chosen, executor=executor, effects=effects, checkpoint=checkpoint)
-        spread = uncertainty(
-            residuals, result.friction, parameters=parameters, input_noise_samples=input_noise_samples, profile=profile
-        )
+        spread = uncertainty(residuals, result.friction, parameters=parameters, input_noise_samples=input_noise_samples)
     return result, spread
 
 

@@ -217,7 +217,6 @@ def identify_program(
     input_noise_samples=INPUT_NOISE_SAMPLES,
     checkpoint=None,
     on_fit=None,
-    profile=False,
 ):
     """The program fit on the chosen trials (the model with `effects`, held fixed), then the uncertainty
     of its result over every originally free parameter. With `screened`, the parameters the start's
@@ -225,8 +224,8 @@ def identify_program(
     sees one of them, it is released and the fit goes on from there (identifiability judged where the fit ended);
     the result's warnings name those still held, and the uncertainty calls none of them identifiable.
     `input_noise_samples` goes to the result's uncertainty(); `checkpoint` (evaluate.Checkpoint) keeps every
-    replay's result; `on_fit(result)` is called as each fit ends, before its uncertainty; `profile`: the result's
-    profile-likelihood intervals too (sysid.profile). Returns (ProgramResult, Uncertainty)."""
+    replay's result; `on_fit(result)` is called as each fit ends, before its uncertainty. Returns (ProgramResult,
+    Uncertainty)."""
     chosen = campaign.chosen(trials)
     with make_executor(workers=workers or min(os.cpu_count() or 1, len(chosen)), scheduler=scheduler) as executor:
         residuals = CampaignResiduals(chosen, executor=executor, effects=effects, checkpoint=checkpoint)
@@ -238,20 +237,11 @@ def identify_program(
             screened=screened,
             input_noise_samples=input_noise_samples,
             on_fit=on_fit,
-            profile=profile,
         )
 
 
 def fit_screened(
-    residuals,
-    *,
-    start: Friction,
-    parameters=None,
-    max_iterations=10,
-    screened=True,
-    input_noise_samples=0,
-    on_fit=None,
-    profile=False,
+    residuals, *, start: Friction, parameters=None, max_iterations=10, screened=True, input_noise_samples=0, on_fit=None
 ):
     """identify_program's stages on `residuals` (a CampaignResiduals, or any callable of (friction, effects) with
     its attributes): the screen at the start, the fit, its uncertainty, and, where the noise at the fit's end sees
@@ -279,7 +269,6 @@ def fit_screened(
             parameters=parameters,
             input_noise_samples=input_noise_samples,
             fitted=[p.name for p in free if not p.frozen],
-            profile=profile,
         )
         return result, spread
 

@@ -102,7 +102,6 @@ def identify(
     progress: Callable | None = None,
     checkpoint=None,
     on_fit: Callable | None = None,
-    profile: bool = True,
 ) -> Identification:
     """Identify the free friction coefficients of `campaign`'s `trials` (all by default) by `method`, from `start`
     (a model file: its coefficients and its effects, which stay fixed; the paper's manual values by default, where
@@ -111,9 +110,7 @@ def identify(
     first 0.5 s at the start model and held. `progress(done, total, name, error)`: each AVS iteration.
     `checkpoint`: a folder where every replay's result is kept as it arrives; run again with it, an interrupted
     identification resumes where it stopped (a fit that ended, from its end). `on_fit(result)`: called with the fit
-    (AvsResult, ProgramResult, EquationErrorResult) as it ends, before its uncertainty and held-out errors.
-    `profile`: each coefficient's profile-likelihood interval beside the reported one (sysid.profile; AVS and the
-    program fit, 2-12 replays a trial a coefficient)."""
+    (AvsResult, ProgramResult, EquationErrorResult) as it ends, before its uncertainty and held-out errors."""
     if method not in METHODS:
         raise ValueError(f"method must be one of {METHODS}, got {method!r}")
     if start_rates not in START_MODES:
@@ -133,12 +130,7 @@ def identify(
     kept = Checkpoint(checkpoint) if checkpoint else None
     common = dict(trials=trials, parameters=parameters, start=friction, effects=effects)
     simulated = dict(
-        workers=workers,
-        scheduler=scheduler,
-        input_noise_samples=input_noise_samples,
-        checkpoint=kept,
-        on_fit=on_fit,
-        profile=profile,
+        workers=workers, scheduler=scheduler, input_noise_samples=input_noise_samples, checkpoint=kept, on_fit=on_fit
     )
     spread = None
     if method == "avs":

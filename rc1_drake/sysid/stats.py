@@ -10,7 +10,6 @@ from scipy.stats import chi2
 from ..config import Z95, Friction
 from .input_noise import INPUT_NOISE_SAMPLES
 from .parameters import DEFAULT_PARAMETERS, difference_step, parameter_value, with_values
-from .profile import OthersRefitted, deviance_scale, profile_interval
 from .residual import FINAL_CHANNEL
 
 
@@ -64,7 +63,6 @@ def larger_covariance(s, j) -> np.ndarray:
     return np.outer(scale, scale) * ((back * np.maximum(lam, 1.0)) @ back.T)
 
 
-SIDE = {True: "above", False: "below"}  # the side that bounds a profile interval open on its lower side, or not
 MAX_RELATIVE_ERROR = 0.3  # a coefficient is identifiable when its standard error is under this share of it
 
 
@@ -100,10 +98,6 @@ class Uncertainty:
     simulations: int
     # the sandwich's standard errors (every row independent), before the trial jackknife widened them where larger
     noise_standard_errors: list[float] = dataclasses.field(default_factory=list)
-    # each coefficient's profile-likelihood 95% interval (sysid.profile), [lower, upper], and whether each side stayed
-    # open to the coefficient's bound; empty where not taken
-    profile_intervals: list[list[float]] = dataclasses.field(default_factory=list)
-    profile_open: list[list[bool]] = dataclasses.field(default_factory=list)
 
     def warnings(self) -> list[str]:
         return [
@@ -112,35 +106,21 @@ class Uncertainty:
             f"a fit these trials support"
             for n, v, se, ok in zip(self.names, self.values, self.standard_errors, self.identifiable, strict=True)
             if not ok
-        ] + [
-            f"{n}: the data bound it {'from neither side' if low and high else 'only from ' + SIDE[low]}"
-            f" (profile 95% interval {profile_text(ends, (low, high))})"
-            for n, ends, (low, high) in zip(self.names, self.profile_intervals, self.profile_open, strict=False)
-            if low or high
         ]
 
     def table(self) -> str:
-        profiled = bool(self.profile_intervals)
         lines = [
-            f"{'coefficient':<12}{'value':>10}{'std. error':>12}{'95% interval':>24}"
-            + (f"{'95% profile interval':>34}" if profiled else "")
-            + f"{'sensitivity':>13}  identifiable"
+            f"{'coefficient':<12}{'value':>10}{'std. error':>12}{'95% interval':>24}{'sensitivity':>13}  identifiable"
         ]
-        for k, (n, v, se, s, ok) in enumerate(
-            zip(self.names, self.values, self.standard_errors, self.sensitivities, self.identifiable, strict=True)
+        for n, v, se, s, ok in zip(
+            self.names, self.values, self.standard_errors, self.sensitivities, self.identifiable, strict=True
         ):
             ci = "-" if not math.isfinite(se) else f"[{v - Z95 * se:.4g}, {v + Z95 * se:.4g}]"
-            pi = f"{profile_text(self.profile_intervals[k], self.profile_open[k]):>34}" if profiled else ""
             lines.append(
-                f"{n:<12}{v:>10.4g}{(f'{se:.3g}' if math.isfinite(se) else 'inf'):>12}{ci:>24}{pi}{s:>13.3g}  "
+                f"{n:<12}{v:>10.4g}{(f'{se:.3g}' if math.isfinite(se) else 'inf'):>12}{ci:>24}{s:>13.3g}  "
                 f"{'yes' if ok else 'NO'}"
             )
         return "\n".join(lines)
-
-
-def profile_text(ends, open_sides) -> str:
-    """'[0.31, 5 (bound)]': a profile interval, a side open to its coefficient's bound marked."""
-    return "[" + ", ".join(f"{e:.4g}{' (bound)' if o else ''}" for e, o in zip(ends, open_sides, strict=True)) + "]"
 
 
 def uncertainty(
@@ -154,7 +134,6 @@ def uncertainty(
     input_noise_samples: int = INPUT_NOISE_SAMPLES,
     trial_jackknife_too: bool = True,
     fitted=None,
-    profile: bool = False,
 ) -> Uncertainty:
     """Standard errors and correlations of the free parameters from the residual Jacobian at
     (`friction`, `effects`): the sandwich (J^T J)^-1 J^T S J (J^T J)^-1 of least squares with S the
@@ -169,9 +148,7 @@ def uncertainty(
     mis-modelled law, a bias the trial jackknife cannot see (findings (34)). The jackknife's steps move only
     those: a direction the data do not see would swing every leave-one-out step along it, and through the
     correlations widen what the data do see. A parameter is identifiable when its relative standard error is below
-    `max_relative_error`. With `profile`, each free parameter's profile-likelihood interval too (sysid.profile:
-    the others profiled, in the reported interval's units; 2-12 more evaluations a parameter). Costs one residual
-    evaluation per free parameter, plus one.
+    `max_relative_error`. Costs one residual evaluation per free parameter, plus one.
 
     The Jacobian is taken in the parameters' own units (forward differences of 5% of the value, at least
     0.5% of the bounds' range for a coefficient, 2% of the range for an effect parameter), not in their
@@ -206,7 +183,6 @@ def uncertainty(
     d = np.sqrt(np.clip(np.diag(cov), 1e-300, None))
     corr = np.where(np.outer(d, d) > 0, cov / np.outer(d, d), 0.0)
     identifiable = [math.isfinite(s) and s < max_relative_error * abs(v) for s, v in zip(se, values, strict=True)]
-    profiles = profile_intervals(residuals, friction, effects, free, r0, jac, se) if profile else []
     return Uncertainty(
         names=[p.name for p in free],
         values=values,
@@ -217,28 +193,7 @@ def uncertainty(
         residual_rms=float(np.sqrt(np.mean(r0**2))),
         simulations=getattr(residuals, "simulations", 0) - start_sims,
         noise_standard_errors=noise_se,
-        profile_intervals=[[p.lower, p.upper] for p in profiles],
-        profile_open=[[p.lower_open, p.upper_open] for p in profiles],
     )
-
-
-def profile_intervals(residuals, friction, effects, free, r0, jac, standard_errors) -> list:
-    """Each of `free`'s profile intervals at (`friction`, `effects`), whose residuals are r0 and Jacobian `jac`, in
-    the units of the reported `standard_errors` (sysid.profile)."""
-    scales = deviance_scale(jac, standard_errors, r0)
-    fit = {p.name: parameter_value(p.name, friction, effects) for p in free}
-    bounds = {p.name: (p.lower, p.upper, p.is_friction) for p in free}
-
-    def residual_at(values):
-        return residuals(*with_values(friction, effects, values))
-
-    out = []
-    for k, p in enumerate(free):
-        profiled = OthersRefitted(residual_at, p.name, fit, np.delete(jac, k, axis=1), bounds)
-        out.append(
-            profile_interval(profiled, fit[p.name], scales[k], p.lower, p.upper, positive=p.is_friction, r_fit=r0)
-        )
-    return out
 
 
 def interval95(value: float, standard_error: float) -> list[float]:
