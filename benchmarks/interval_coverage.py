@@ -16,8 +16,9 @@ strength (benchmarks/diagnosis.py's REFERENCE, the one physical library effect r
 Each campaign is identified as `rc1 identify --start-rates fit` does, by the program fit and by AVS (3 iterations),
 and diagnosed as `rc1 diagnose` does by default. A row keeps every coefficient's estimate, its reported standard
 error and the sandwich's (noise alone), whether the report called it identifiable, and the truth. Scored: of the
-intervals a report gives (an identifiable coefficient, an accepted effect's coordinate), how many hold the truth,
-beside those the sandwich alone would have given (before issue 67); mu_lat within 25%; the toe found, its interval
+intervals a report gives (an identifiable coefficient, an accepted effect's coordinate, judged against 0 where the
+effect is not hidden), how many hold the truth, beside the narrower ones of before (identify's sandwich alone, before
+issue 67; the diagnosis's without the friction it holds unidentified); mu_lat within 25%; the toe found, its interval
 holding. Seeds below 10 (CHOSE) are kept for choosing rules; the table reports the others. Rows stream to
 benchmarks/rows/interval_coverage.jsonl (kept in the repository): a rerun resumes, from a fresh clone too.
 --markdown writes the table into docs/identification.md.
