@@ -169,6 +169,9 @@ def test_rc1_design_writes_a_plan_a_lab_can_run(tmp_path, capsys):
     assert written["evidence"][0]["wheel_toe | head_drag"] > 0
     check = written["check"]["wheel_toe's trials, head_drag fitted"]  # one noisy replicate: its ratio beside the plan's
     assert len(check["realized"]) == 1 and check["predicted"] >= written["evidence"][0]["wheel_toe | head_drag"]
+    # one trial: fitted alone it is the whole plan, in prediction and in the replicate
+    assert check["by_trial"]["predicted"] == pytest.approx([check["predicted"]], rel=1e-9)
+    assert check["by_trial"]["realized"] == [pytest.approx(check["realized"], rel=1e-9)]
     scenario = yaml_load_typed(schema=Scenario, filename=str(plan / "trial_1.yaml"), child_name="trial_1")
     assert math.isclose(scenario.stop.time_limit_s, written["trials"][0]["seconds"])
     run = tmp_path / "run.json"

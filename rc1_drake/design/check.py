@@ -9,11 +9,13 @@ from .hypotheses import pairs
 from .separation import distance, rival_linearization, synthesized_trial
 
 
-def realized_separation(designs, hypotheses, lab, free, evaluator, *, replicates: int, seed: int, scatter=0.0) -> dict:
+def realized_separation(designs, hypotheses, lab, free, evaluator, *, replicates: int, seed: int, scatter=0.0) -> tuple:
     """Per direction "a's trials, b fitted": the realized ratio (the rival's weighted sum of squares less a's own,
     both fitted with their starts, the free friction and their own effects; weighed by the failed joint's `scatter`)
-    of each of `replicates` noisy copies of the planned trials (`designs`)."""
+    of each of `replicates` noisy copies of the planned trials (`designs`); and the same per trial, each fitted
+    alone (which trial of a plan its prediction fails on). Returns (per direction, per direction and trial)."""
     out: dict[str, list[float]] = {}
+    by_trial: dict[str, list[list[float]]] = {}
     every = list(range(len(designs)))
     for r in range(replicates):
         noisy = [
@@ -23,15 +25,16 @@ def realized_separation(designs, hypotheses, lab, free, evaluator, *, replicates
         ]  # fmt: skip
         if any(isinstance(t, str) for trials in noisy for t in trials):
             continue  # a replicate whose run fails the loader's checks (separation.synthesized_trial) is not drawn
-        own = [distance(rival_linearization(noisy[x], noisy[x], h, free, evaluator, scatter), every)
-               for x, h in enumerate(hypotheses)]  # fmt: skip
+        own = [rival_linearization(noisy[x], noisy[x], h, free, evaluator, scatter) for x, h in enumerate(hypotheses)]
         for a, b in pairs(hypotheses):
             for x, y in ((a, b), (b, a)):
-                rival = distance(
-                    rival_linearization(noisy[x], noisy[x], hypotheses[y], free, evaluator, scatter), every
-                )
-                out.setdefault(direction(hypotheses, x, y), []).append(rival - own[x])
-    return out
+                rival = rival_linearization(noisy[x], noisy[x], hypotheses[y], free, evaluator, scatter)
+                name = direction(hypotheses, x, y)
+                out.setdefault(name, []).append(distance(rival, every) - distance(own[x], every))
+                per = by_trial.setdefault(name, [[] for _ in every])
+                for k in every:
+                    per[k].append(distance(rival, [k]) - distance(own[x], [k]))
+    return out, by_trial
 
 
 def direction(hypotheses, x: int, y: int) -> str:
@@ -47,10 +50,24 @@ def predicted_separation(hypotheses, lins, indices) -> dict[str, float]:
     }
 
 
-def check_lines(predicted: dict[str, float], realized: dict[str, list[float]]) -> list[str]:
-    """One line per direction: predicted, realized (mean and each replicate)."""
-    return [
-        f"  {name}: predicted {predicted[name]:.3g}, realized {np.mean(values):.3g} "
-        f"({', '.join(f'{v:.3g}' for v in values)})"
-        for name, values in realized.items()
-    ]
+def predicted_by_trial(hypotheses, lins, indices) -> dict[str, list[float]]:
+    """Per direction, the distance the plan predicts on each of its trials `indices` fitted alone."""
+    return {
+        direction(hypotheses, x, y): [distance(lins[x, y], [k]) for k in indices]
+        for a, b in pairs(hypotheses)
+        for x, y in ((a, b), (b, a))
+    }
+
+
+def check_lines(predicted: dict, realized: dict, predicted_trials: dict, realized_trials: dict) -> list[str]:
+    """One line per direction: predicted, realized (mean and each replicate); under it, one per trial fitted alone."""
+    lines = []
+    for name, values in realized.items():
+        lines.append(
+            f"  {name}: predicted {predicted[name]:.3g}, realized {np.mean(values):.3g} "
+            f"({', '.join(f'{v:.3g}' for v in values)})"
+        )
+        for k, (guess, seen) in enumerate(zip(predicted_trials[name], realized_trials[name], strict=True), 1):
+            lines.append(f"    trial {k} alone: predicted {guess:.3g}, realized {np.mean(seen):.3g} "
+                         f"({', '.join(f'{v:.3g}' for v in seen)})")  # fmt: skip
+    return lines

@@ -21,7 +21,7 @@ from ..config import Rc1Error
 from ..diagnose.thresholds import THRESHOLDS
 from ..executor import make_executor
 from ..sysid.evaluate import Evaluator
-from .check import check_lines, direction, predicted_separation, realized_separation
+from .check import check_lines, direction, predicted_by_trial, predicted_separation, realized_separation
 from .hypotheses import Hypothesis, open_hypotheses, pairs
 from .lab import Lab, TrialDesign, off_the_floor, sampled_designs
 from .separation import rival_linearization, synthesized_trial, told_apart
@@ -55,6 +55,9 @@ class Plan:
     realized: dict[str, list[float]] = dataclasses.field(default_factory=dict)  # per direction, each replicate
     # per step: "a | b" -> the held-out ratio the diagnosis of the union is predicted to see (Standing.ratio)
     ratios: list[dict[str, float]] = dataclasses.field(default_factory=list)
+    # per direction and chosen trial, fitted alone: the predicted distance, and the realized one of each replicate
+    predicted_trials: dict[str, list[float]] = dataclasses.field(default_factory=dict)
+    realized_trials: dict[str, list[list[float]]] = dataclasses.field(default_factory=dict)
 
     def to_json(self) -> dict:
         return {
@@ -67,7 +70,14 @@ class Plan:
             "evidence": self.evidence,
             "told_apart": [{pair: told_apart(d) for pair, d in step.items()} for step in self.evidence],
             "held_out_ratio": self.ratios,
-            "check": {n: {"predicted": self.predicted[n], "realized": v} for n, v in self.realized.items()},
+            "check": {
+                n: {
+                    "predicted": self.predicted[n],
+                    "realized": v,
+                    "by_trial": {"predicted": self.predicted_trials[n], "realized": self.realized_trials[n]},
+                }
+                for n, v in self.realized.items()
+            },
             "considered": self.considered,
             "dropped": self.dropped,
             "simulations": self.simulations,
@@ -87,7 +97,7 @@ class Plan:
             count = len(next(iter(self.realized.values())))
             lines.append(f"the plan's own check ({count} noisy replicate(s) under each hypothesis; -2 log likelihood "
                          "ratio):")  # fmt: skip
-            lines += check_lines(self.predicted, self.realized)
+            lines += check_lines(self.predicted, self.realized, self.predicted_trials, self.realized_trials)
         lines.append(f"{self.simulations} simulations, {self.wall_s:.0f} s")
         return "\n".join(lines)
 
@@ -162,13 +172,13 @@ def design_trials(*, diagnosis: dict, lab: Lab | None = None, budget: int = 4, c
         }
         chosen, evidence, ratios = _greedy(hypotheses, lins, min(budget, len(keep)), Standing.of(diagnosis, hypotheses))
         picked = [designs[keep[n]] for n in chosen]
-        realized = realized_separation(picked, hypotheses, lab, free, evaluator, replicates=replicates, seed=seed,
-                                       scatter=scatter)  # fmt: skip
+        realized, realized_trials = realized_separation(picked, hypotheses, lab, free, evaluator,
+                                                        replicates=replicates, seed=seed, scatter=scatter)  # fmt: skip
         simulations = evaluator.simulations
     paths = [{h.name: made[0][i][keep[n]].camera[:, :2].tolist() for i, h in enumerate(hypotheses)} for n in chosen]
     return Plan(lab, hypotheses, picked, evidence, paths, len(designs), dropped, simulations,
                 time.perf_counter() - started, predicted_separation(hypotheses, lins, chosen), realized,
-                ratios)  # fmt: skip
+                ratios, predicted_by_trial(hypotheses, lins, chosen), realized_trials)  # fmt: skip
 
 
 def _synthesized(designs, hypothesis, lab, noisy, seed, evaluator) -> list:
