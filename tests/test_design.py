@@ -270,6 +270,19 @@ def test_the_failed_joints_scatter_the_diagnosis_took_discounts_only_failed_join
         assert (weighed < 0.95 * plain) if falls else weighed == plain, (failed, plain, weighed)  # 233 -> 210
 
 
+def test_the_checks_noisy_replicate_has_the_replays_bias_taken_off_as_the_diagnosis_takes_it():
+    """A 3 s J7 trial with the lab's potentiometer noise, replayed by the model that made it: measured, its residuals
+    are those with the bias the twin bootstrap measured taken off (findings (41): left on, a 9 s replicate's own
+    hypothesis fitted worse than its rival on every replicate); the prediction's noise-free trials keep theirs."""
+    lab, evaluator = Lab(min_seconds=1.0), Evaluator(None)
+    toe = Hypothesis("toe", Friction(), {"wheel_toe_deg": 2.0})
+    noisy = [synthesized_trial(TrialDesign((7,), seconds=3.0), toe, lab, True, 5, "d0")]
+    left_on = rival_linearization(noisy, noisy, toe, [], evaluator)
+    taken_off = rival_linearization(noisy, noisy, toe, [], evaluator, measured=True)
+    assert left_on.bias is None and np.abs(taken_off.bias[0]).max() > 0
+    assert taken_off.r0[0] == pytest.approx(left_on.r0[0] - taken_off.bias[0], abs=1e-9)
+
+
 def test_the_plan_predicts_the_held_out_ratio_the_diagnosis_decides_by():
     """Today's best leaves 400 (held out), its rival 460: 4 trials of 50 rows add 200 to the true one's and the
     pair's distance to the rival's, so a distance of 240 brings the ratio to (600 + 60 + 240) / 600 = 1.5."""

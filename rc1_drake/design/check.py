@@ -11,7 +11,8 @@ from .separation import distance, rival_linearization, synthesized_trial
 
 def realized_separation(designs, hypotheses, lab, free, evaluator, *, replicates: int, seed: int, scatter=0.0) -> tuple:
     """Per direction "a's trials, b fitted": the realized ratio (the rival's weighted sum of squares less a's own,
-    both fitted with their starts, the free friction and their own effects; weighed by the failed joint's `scatter`)
+    both fitted with their starts, the free friction and their own effects, each model's replay bias on the noisy
+    trials taken off as the diagnosis takes it; weighed by the failed joint's `scatter`)
     of each of `replicates` noisy copies of the planned trials (`designs`); and the same per trial, each fitted
     alone (which trial of a plan its prediction fails on). Returns (per direction, per direction and trial)."""
     out: dict[str, list[float]] = {}
@@ -25,10 +26,11 @@ def realized_separation(designs, hypotheses, lab, free, evaluator, *, replicates
         ]  # fmt: skip
         if any(isinstance(t, str) for trials in noisy for t in trials):
             continue  # a replicate whose run fails the loader's checks (separation.synthesized_trial) is not drawn
-        own = [rival_linearization(noisy[x], noisy[x], h, free, evaluator, scatter) for x, h in enumerate(hypotheses)]
+        own = [rival_linearization(noisy[x], noisy[x], h, free, evaluator, scatter, measured=True)
+               for x, h in enumerate(hypotheses)]  # fmt: skip
         for a, b in pairs(hypotheses):
             for x, y in ((a, b), (b, a)):
-                rival = rival_linearization(noisy[x], noisy[x], hypotheses[y], free, evaluator, scatter)
+                rival = rival_linearization(noisy[x], noisy[x], hypotheses[y], free, evaluator, scatter, measured=True)
                 name = direction(hypotheses, x, y)
                 out.setdefault(name, []).append(distance(rival, every) - distance(own[x], every))
                 per = by_trial.setdefault(name, [[] for _ in every])
