@@ -28,14 +28,16 @@ def realized_separation(designs, hypotheses, lab, free, evaluator, *, replicates
             continue  # a replicate whose run fails the loader's checks (separation.synthesized_trial) is not drawn
         own = [rival_linearization(noisy[x], noisy[x], h, free, evaluator, scatter, measured=True)
                for x, h in enumerate(hypotheses)]  # fmt: skip
+        own_total = [distance(lin, every) for lin in own]
+        own_each = [[distance(lin, [k]) for k in every] for lin in own]
         for a, b in pairs(hypotheses):
             for x, y in ((a, b), (b, a)):
                 rival = rival_linearization(noisy[x], noisy[x], hypotheses[y], free, evaluator, scatter, measured=True)
                 name = direction(hypotheses, x, y)
-                out.setdefault(name, []).append(distance(rival, every) - distance(own[x], every))
+                out.setdefault(name, []).append(distance(rival, every) - own_total[x])
                 per = by_trial.setdefault(name, [[] for _ in every])
                 for k in every:
-                    per[k].append(distance(rival, [k]) - distance(own[x], [k]))
+                    per[k].append(distance(rival, [k]) - own_each[x][k])
     return out, by_trial
 
 

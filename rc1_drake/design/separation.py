@@ -60,16 +60,17 @@ def rival_linearization(
     the `free` friction coefficients and its own effects, each trial weighed by the replay's own error measured on
     its `noisy` copy at the rival's model (BOOTSTRAP_DRAWS draws) and, with `scatter` (tau, the diagnosis's), by the
     failed joint's scatter as the diagnosis weighs its trials (diagnose.scatter): a failed-joint trial tells what
-    the scatter leaves of it, not what the sensors alone would. `measured`: `data` are noisy (the plan's check), and
-    the replay's bias on them is taken off as the diagnosis takes it (noise-free data have none to take off)."""
-    bias, noise, start_bias, _ = replay_errors(noisy, rival.friction, rival.effects, evaluator, BOOTSTRAP_DRAWS)
+    the scatter leaves of it, not what the sensors alone would. `measured`: `data` are noisy (the plan's check): the
+    replay's own error is measured on them, at the starts the residuals are taken at, and its bias taken off, as the
+    diagnosis does (linearize; noise-free data have none to take off)."""
     held = [n for n in dataclasses.asdict(rival.friction) if n not in free]
-    lin = linearize(data, rival.friction, rival.effects, list(rival.owned), evaluator, noise=noise, held=held,
-                    starts=True)  # fmt: skip
+    common = dict(held=held, starts=True)
     if measured:
-        lin = dataclasses.replace(lin, bias=bias, start_bias=start_bias)
-        lin.r0 = [lin.corrected(k, r) for k, r in enumerate(lin.r0)]
-        lin.w0 = [lin.start_corrected(k, w) for k, w in enumerate(lin.w0)]
+        lin = linearize(data, rival.friction, rival.effects, list(rival.owned), evaluator,
+                        input_noise_samples=BOOTSTRAP_DRAWS, **common)  # fmt: skip
+    else:
+        _, noise, _, _ = replay_errors(noisy, rival.friction, rival.effects, evaluator, BOOTSTRAP_DRAWS)
+        lin = linearize(data, rival.friction, rival.effects, list(rival.owned), evaluator, noise=noise, **common)
     if scatter > 0.0 and any(t.failed_joints for t in data):
         lin = failed_joint_scatter(lin, evaluator).weighing(lin, scatter)
     return lin
