@@ -26,6 +26,7 @@ benchmarks/rows/interval_coverage.jsonl (kept in the repository): a rerun resume
 
 import argparse
 import dataclasses
+import itertools
 import math
 import time
 from pathlib import Path
@@ -56,6 +57,10 @@ METHODS = ("program", "avs", "diagnose")
 VERSIONS = {"program": "2026-12-02", "avs": "2026-12-02", "diagnose": "2026-12-03"}
 LAW = "+failed-joint-law"  # a diagnosis with the failed joints' law fitted as nuisance (diagnose's failed_joint_law)
 HIDDEN = ("none", "wheel_toe")
+# The truth's form: "stop", the failed joint's (below); "lab", that and another lab's sensors besides (synthesize.
+# LabForms: potentiometers on the servos' shafts behind a compliant linkage, a converter's step, a camera marker ahead
+# of the head's centre, a camera scale error), drawn per seed from a stream of its own (the stop's draws stay).
+FORMS = ("stop", "lab")
 J7_BIAS_DEG = next(c.bias_deg for c in PAPER_DESIGN if c.bias_deg)
 DESIGN = [Case([], 2), Case([7], 2), Case([13], 2), Case([7], 2, bias_deg=J7_BIAS_DEG)]
 
@@ -67,6 +72,7 @@ class Truth:
     stop_Nm_s_per_rad: float
     dry_Nm: float
     sample_period_s: float
+    lab: dict = dataclasses.field(default_factory=dict)  # synthesize.LabForms' effect keys ("lab" form)
 
     def effects(self, hidden: str) -> dict:
         out = {
@@ -74,11 +80,24 @@ class Truth:
             "reference_stop_Nm_s_per_rad": self.stop_Nm_s_per_rad,
             "discrepancy_failed_joint_dry_Nm": self.dry_Nm,
         }
-        return out | diagnosis.hidden_effects(None if hidden == "none" else hidden, 1.0)
+        return out | self.lab | diagnosis.hidden_effects(None if hidden == "none" else hidden, 1.0)
 
 
-def draw(seed: int) -> Truth:
-    """The seed's truth: the failed joint's form and the wheels' friction, drawn over the ranges of the docstring."""
+def draw_lab(seed: int) -> dict:
+    """Another lab's sensors: linkage compliance 0.002-0.02 rad/N m (log-uniform; 50-500 N m/rad), a converter's step
+    of 0.1-0.35 deg, the camera's marker 0-5 cm ahead of the head's centre and its scale off by up to 1%."""
+    rng = np.random.default_rng([67, seed, 1])
+    return {
+        "reference_linkage_rad_per_Nm": float(math.exp(rng.uniform(math.log(0.002), math.log(0.02)))),
+        "reference_potentiometer_step_deg": float(rng.uniform(0.1, 0.35)),
+        "reference_camera_marker_m": float(rng.uniform(0.0, 0.05)),
+        "reference_camera_scale_error": float(rng.uniform(-0.01, 0.01)),
+    }
+
+
+def draw(seed: int, form: str = "stop") -> Truth:
+    """The seed's truth: the failed joint's form and the wheels' friction, drawn over the ranges of the docstring,
+    and for the "lab" form another lab's sensors (draw_lab)."""
     rng = np.random.default_rng([67, seed])
 
     def log_uniform(low, high):
@@ -97,12 +116,13 @@ def draw(seed: int) -> Truth:
         stop_Nm_s_per_rad=log_uniform(0.2, 2.0),
         dry_Nm=float(rng.uniform(0.0, 0.3)),
         sample_period_s=0.02 if seed % 2 == 0 else 0.01,
+        lab=draw_lab(seed) if form == "lab" else {},
     )
 
 
-def campaign_of(seed: int, hidden: str, out: Path):
-    truth = draw(seed)
-    folder = out / "campaigns" / f"{hidden}-{seed}"
+def campaign_of(seed: int, hidden: str, out: Path, form: str = "stop"):
+    truth = draw(seed, form)
+    folder = out / "campaigns" / f"{'' if form == 'stop' else form + '-'}{hidden}-{seed}"
     if not folder.is_dir():
         synthesize_campaign(
             folder,
@@ -139,8 +159,8 @@ def _freed(result) -> set:
 
 
 def measure(seed: int, hidden: str, method: str, args) -> dict:
-    campaign, truth = campaign_of(seed, hidden, args.out)
-    checkpoint = args.out / "checkpoints" / f"{hidden}-{seed}-{method}"
+    campaign, truth = campaign_of(seed, hidden, args.out, args.form)
+    checkpoint = args.out / "checkpoints" / f"{'' if args.form == 'stop' else args.form + '-'}{hidden}-{seed}-{method}"
     law = LAW if args.failed_joint_law else ""
     started = time.perf_counter()
     if method == "diagnose":
@@ -174,6 +194,8 @@ def measure(seed: int, hidden: str, method: str, args) -> dict:
             "dry_Nm": truth.dry_Nm,
         },  # fmt: skip
         "sample_period_s": truth.sample_period_s,
+        "form": args.form,
+        "lab": truth.lab,
         "estimates": estimates,
         **extra,
         "simulations": result.simulations,
@@ -251,6 +273,10 @@ def method_of(row: dict) -> str:
 TABLED = [*METHODS, "diagnose, failed-joint law"]
 
 
+def form_of(row: dict) -> str:
+    return row.get("form", "stop")  # rows before the lab form had the failed joint's alone
+
+
 def table(rows: list) -> str:
     reported = [r for r in rows if r["seed"] not in CHOSE]
     seeds = sorted({r["seed"] for r in reported})
@@ -263,34 +289,31 @@ def table(rows: list) -> str:
         " before issue 67), the diagnosis's without the friction it holds unidentified (its intervals carry it, known"
         " to a factor 2, since 2026-12-03); mu_lat within 25% of the truth; the toe found, and its interval holding:",
         "",
-        "| method | hidden | campaigns | narrower: given, hold | reported: given, hold | mu_lat within 25% "
+        "| form | method | hidden | campaigns | narrower: given, hold | reported: given, hold | mu_lat within 25% "
         "| toe found, holds | median min |",
-        "|---|---|---|---|---|---|---|---|",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
-    for method in TABLED:
-        for hidden in HIDDEN:
-            mine = [r for r in reported if method_of(r) == method and r["hidden"] == hidden]
-            if not mine:
-                continue
-            given, held, before, before_held = intervals(mine)
-            kept = [(mu_lat_kept(r), r["truth"]["mu_lat"]) for r in mine]
-            kept = [(v, t) for v, t in kept if v is not None]
-            close = f"{sum(abs(v / t - 1) <= 0.25 for v, t in kept)} of {len(kept)}" if kept else "-"
-            toe = [r["estimates"].get("wheel_toe_deg") for r in mine] if hidden == "wheel_toe" else []
-            found = [e for e in toe if e is not None and e["interval"]]
-            inside = sum(bool(holds(e, diagnosis.REFERENCE["wheel_toe"][1])) for e in found)
-            toe_text = (
-                "-"
-                if hidden == "none" or not method.startswith("diagnose")
-                else f"{len(found)} of {len(mine)}, {inside}"
-            )
-            before_text = f"{before}, {before_held}" if before else "-"
-            timed = [r["wall_s"] for r in mine if not r.get("shared_cpu")]  # alone on the machine
-            minutes = f"{float(np.median(timed)) / 60:.1f}" if timed else "- (shared CPU)"
-            lines.append(
-                f"| {method} | {hidden} | {len(mine)} | {before_text} | {given}, {held} | {close} | "
-                f"{toe_text} | {minutes} |"
-            )
+    for form, method, hidden in itertools.product(FORMS, TABLED, HIDDEN):
+        mine = [r for r in reported if method_of(r) == method and r["hidden"] == hidden and form_of(r) == form]
+        if not mine:
+            continue
+        given, held, before, before_held = intervals(mine)
+        kept = [(mu_lat_kept(r), r["truth"]["mu_lat"]) for r in mine]
+        kept = [(v, t) for v, t in kept if v is not None]
+        close = f"{sum(abs(v / t - 1) <= 0.25 for v, t in kept)} of {len(kept)}" if kept else "-"
+        toe = [r["estimates"].get("wheel_toe_deg") for r in mine] if hidden == "wheel_toe" else []
+        found = [e for e in toe if e is not None and e["interval"]]
+        inside = sum(bool(holds(e, diagnosis.REFERENCE["wheel_toe"][1])) for e in found)
+        toe_text = (
+            "-" if hidden == "none" or not method.startswith("diagnose") else f"{len(found)} of {len(mine)}, {inside}"
+        )
+        before_text = f"{before}, {before_held}" if before else "-"
+        timed = [r["wall_s"] for r in mine if not r.get("shared_cpu")]  # alone on the machine
+        minutes = f"{float(np.median(timed)) / 60:.1f}" if timed else "- (shared CPU)"
+        lines.append(
+            f"| {form} | {method} | {hidden} | {len(mine)} | {before_text} | {given}, {held} | {close} | "
+            f"{toe_text} | {minutes} |"
+        )
     return "\n".join(lines)
 
 
@@ -303,6 +326,7 @@ def main():
     parser.add_argument("--out", type=Path, default=REPO_ROOT / "benchmarks" / "out" / "interval_coverage")
     parser.add_argument("--markdown", action="store_true")
     parser.add_argument("--table-only", action="store_true")
+    parser.add_argument("--form", choices=FORMS, default="stop", help="the truth's form (FORMS)")
     parser.add_argument("--failed-joint-law", action="store_true", help="diagnose with the failed joints' law fitted")
     args = parser.parse_args()
     methods, hidden = args.methods.split(","), args.hidden.split(",")
@@ -311,10 +335,10 @@ def main():
     if args.markdown:
         check_block(PAGE, BLOCK, WRITER)
     args.out.mkdir(parents=True, exist_ok=True)
-    done = {(r["seed"], r["hidden"], method_of(r)) for r in load_rows(ROWS)}
+    done = {(r["seed"], r["hidden"], method_of(r), form_of(r)) for r in load_rows(ROWS)}
     label = {"diagnose": "diagnose, failed-joint law"} if args.failed_joint_law else {}  # identify ignores it
     jobs = [(s, h, m) for s in parse_seeds(args.seeds) for h in hidden for m in methods
-            if (s, h, label.get(m, m)) not in done]  # fmt: skip
+            if (s, h, label.get(m, m), args.form) not in done]  # fmt: skip
     for k, (seed, what, method) in enumerate([] if args.table_only else jobs, 1):
         row = measure(seed, what, method, args)
         append_row(ROWS, row)

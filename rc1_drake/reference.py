@@ -143,6 +143,7 @@ class ReferenceRun:
     wall_time_s: float
     circled: bool = False  # stopped where the head's yaw had turned by the stop's revolutions
     z_dot: np.ndarray | None = None  # (N, 16) rates of (x, y, yaw of the head, q_1..q_13)
+    joint_torque: np.ndarray | None = None  # (N, 13) N m the working joints took to follow their path (0: failed)
 
 
 class PlanarSnake:
@@ -349,7 +350,8 @@ def simulate_reference(
         z[free], zd[free] = y[:nf], y[nf:]
         return z, zd, qdd
 
-    def rhs(t, y):
+    def dynamics(t, y):
+        """The free coordinates' accelerations, and the generalized accelerations, masses and forces."""
         z, zd, qdd = full(t, y)
         mass_matrix, velocity_force = snake.dynamics_terms(z, zd)
         force = velocity_force + snake.wheel_force(z, zd, scenario.friction, eps, toe_rad)
@@ -360,7 +362,20 @@ def simulate_reference(
             force[3 + failed] += hidden.joint_torque(qf, qfd)
         rhs_free = force[free] - mass_matrix[np.ix_(free, fixed)] @ qdd[working]
         acc = np.linalg.solve(mass_matrix[np.ix_(free, free)], rhs_free)
-        return np.concatenate([zd[free], acc])
+        zdd = np.empty_like(z)
+        zdd[free], zdd[fixed] = acc, qdd[working]
+        return zd[free], acc, zdd, mass_matrix, force
+
+    def rhs(t, y):
+        rates, acc, *_ = dynamics(t, y)
+        return np.concatenate([rates, acc])
+
+    def working_torque(t, y):
+        """The torque each working joint takes to follow its path (Eq. 1's rows of the prescribed joints)."""
+        _, _, zdd, mass_matrix, force = dynamics(t, y)
+        tau = (mass_matrix @ zdd - force)[3:]
+        tau[failed] = 0.0
+        return tau
 
     y0 = _start_state(snake, scenario, prescribed, free, at_rest)
     events = _stop_events(scenario, y0)
@@ -397,4 +412,5 @@ def simulate_reference(
         wall_time_s=wall,
         z_dot=zds,
         circled=bool(fired) and not crossed,
+        joint_torque=np.array([working_torque(t, y) for t, y in zip(times, states, strict=True)]),
     )

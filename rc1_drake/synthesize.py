@@ -96,13 +96,53 @@ DESIGNS = {"paper": PAPER_DESIGN, "identification": IDENTIFICATION_DESIGN}
 # A floor seam (reference.HiddenForces) is in no other model, nor in the library: what discovery makes of a shape
 # it has no term for; the failed joints' stop beyond the limit, of another gain and damping, is another form of
 # failed joint (issue 67).
-REFERENCE_ONLY = ("floor_seam_Nm", "floor_seam_x_m", "reference_stop_Nm_per_rad", "reference_stop_Nm_s_per_rad")
+# The lab's forms (LabForms) are other sensors than the replay assumes.
+REFERENCE_ONLY = (
+    "floor_seam_Nm", "floor_seam_x_m", "reference_stop_Nm_per_rad", "reference_stop_Nm_s_per_rad",
+    "reference_linkage_rad_per_Nm", "reference_potentiometer_step_deg", "reference_camera_marker_m",
+    "reference_camera_scale_error",
+)  # fmt: skip
 REFERENCE_EFFECTS = (
     "wheel_toe_deg",
     "tail_tether_N",
     *(e.main.key for e in LIBRARY.values() if e.sensor or e.discrepancy),
     *REFERENCE_ONLY,
 )
+
+
+@dataclasses.dataclass(frozen=True)
+class LabForms:
+    """How another lab's sensors differ in form from what the replay assumes (issue 67; reference truth only).
+
+    linkage: each potentiometer reads its servo's shaft, a compliant four-bar away from the module, so the reading
+    leads the joint's angle by the compliance times the torque the servo gives it (rad per N m). potentiometer_step:
+    the readings are quantized by the acquisition's converter (deg). camera_marker: the camera tracks a marker this
+    far ahead of the head's centre along its axis (m); camera_scale_error: its floor calibration scales positions
+    about the floor's origin by 1 + this. The hand-measured final position has neither."""
+
+    linkage_rad_per_Nm: float = 0.0
+    potentiometer_step_deg: float = 0.0
+    camera_marker_m: float = 0.0
+    camera_scale_error: float = 0.0
+
+    @classmethod
+    def from_effects(cls, effects: dict) -> "LabForms":
+        out = cls(**{f.name: float(effects.get(f"reference_{f.name}", 0.0)) for f in dataclasses.fields(cls)})
+        for f, (low, high) in zip(dataclasses.fields(cls), ((0, 0.2), (0, 2.0), (-0.1, 0.1), (-0.1, 0.1)), strict=True):
+            if not low <= getattr(out, f.name) <= high:
+                raise Rc1Error(
+                    f"synthesize: effects.reference_{f.name}: must lie in [{low}, {high}], got {getattr(out, f.name)}"
+                )
+        return out
+
+    def camera(self, pose: np.ndarray) -> np.ndarray:
+        """The camera's (x, y, yaw) of the head's true `pose` (N, 3)."""
+        xy = pose[:, :2] + self.camera_marker_m * np.column_stack([np.cos(pose[:, 2]), np.sin(pose[:, 2])])
+        return np.column_stack([xy * (1.0 + self.camera_scale_error), pose[:, 2]])
+
+    def quantized(self, readings: np.ndarray) -> np.ndarray:
+        step = math.radians(self.potentiometer_step_deg)
+        return readings if step == 0.0 else step * np.round(readings / step)
 
 
 def synthesize_campaign(
@@ -150,6 +190,7 @@ def synthesize_campaign(
             HiddenForces.from_effects(effects or {})
         except ValueError as e:
             raise Rc1Error(f"synthesize: {e}") from None
+        LabForms.from_effects(effects or {})
     if record_after_s < 0 or abs(record_after_s / sample_period_s - round(record_after_s / sample_period_s)) > 1e-9:
         raise Rc1Error(
             f"synthesize: record_after_s must be a non-negative multiple of the sample period, got {record_after_s}"
@@ -263,7 +304,7 @@ def _reference_run(scenario: Scenario, record_after_s: float, period: float) -> 
         scenario=scenario,
         t=ref.t[keep] - record_after_s,
         state=state,
-        servo_torque=np.zeros((len(state), NUM_JOINTS)),
+        servo_torque=ref.joint_torque[keep],
         stop_reason=reason,
         wall_time_s=ref.wall_time_s,
         geometry=geometry,
@@ -324,8 +365,10 @@ def _measure(run, scenario, trial_id, noise: Noise, rng, camera, t) -> Trial:
     """What the robot's sensors and the experimenter would have recorded of `run` at the sample times `t` (s)."""
     n = len(t)
     sensors = sensor_model(scenario.effects)  # the sensor faults, before the noise
-    angles = np.column_stack([np.interp(t, run.t, run.q[:, j]) for j in range(NUM_JOINTS)])
-    q = sensors.potentiometers(angles) + rng.normal(0, math.radians(noise.potentiometer_deg), (n, 13))
+    lab = LabForms.from_effects(scenario.effects)
+    shafts = run.q + lab.linkage_rad_per_Nm * run.servo_torque
+    angles = np.column_stack([np.interp(t, run.t, shafts[:, j]) for j in range(NUM_JOINTS)])
+    q = lab.quantized(sensors.potentiometers(angles) + rng.normal(0, math.radians(noise.potentiometer_deg), (n, 13)))
     for f in scenario.failures:
         q[:, f.joint - 1] = np.nan
     rate = (
@@ -335,7 +378,7 @@ def _measure(run, scenario, trial_id, noise: Noise, rng, camera, t) -> Trial:
     )
     cam = None
     if camera:
-        pose = sensors.camera(t, run.t, run.state[:, :3])
+        pose = sensors.camera(t, run.t, lab.camera(run.state[:, :3]))
         cam = np.column_stack(
             [
                 pose[:, :2] + rng.normal(0, noise.camera_m, (n, 2)),

@@ -8,6 +8,7 @@ to keep the stiff reference integration short.
 """
 
 import dataclasses
+import math
 
 import numpy as np
 import pytest
@@ -160,3 +161,53 @@ def test_the_reference_failed_joint_stop_is_a_pd_beyond_the_limit_of_its_truth_g
         ref = simulate_reference(scenario, plant_numbers().geometry, rtol=1e-5, atol=1e-7)
         reach[gain] = np.abs(ref.q[:, 6]).max() - LIMIT_RAD
     assert reach[20.0] > 0.0 and reach[20.0] > 2.0 * max(reach[500.0], 0.0)  # measured 0.022 and 0.0074 rad
+
+
+def test_a_working_joint_takes_the_torque_of_the_path_it_follows():
+    """The reference's working-joint torques (Eq. 1's rows of the prescribed joints, which LabForms' linkage reads):
+    joint 7 made to follow the path it took when free takes exactly its free law's torque, -c_joint q_dot (inside the
+    limit), and the head moves as it did (measured: 4e-6 N m of 0.07, 1.4e-6 m)."""
+    from rc1_drake.engine.dynamics import plant_numbers
+
+    geometry = plant_numbers().geometry
+    free = Scenario(failures=[Failure(joint=7)], stop=Stop(time_limit_s=1.5), numerics=Numerics(sgn_smoothing_m_s=5e-3))
+    grid = np.arange(0.0, 1.5 + 1e-9, 0.002)
+    loose = simulate_reference(free, geometry, at_rest="head", t_eval=grid, rtol=1e-9, atol=1e-11)
+    assert np.abs(loose.q[:, 6]).max() < math.radians(38.0)  # inside the limit: no stop torque
+    held = simulate_reference(
+        dataclasses.replace(free, failures=[]), geometry, at_rest="head", t_eval=grid, joint_path=(loose.t, loose.q),
+        rtol=1e-9, atol=1e-11,
+    )  # fmt: skip
+    inner = slice(50, -50)  # away from the spline's ends
+    passive = -free.friction.c_joint * loose.z_dot[inner, 9]
+    np.testing.assert_allclose(held.joint_torque[inner, 6], passive, atol=1e-4 * np.abs(passive).max() + 1e-5)
+    others = np.arange(13) != 6
+    np.testing.assert_allclose(held.joint_torque[inner][:, others], loose.joint_torque[inner][:, others], atol=1e-4)
+    assert np.abs(held.head_xy - loose.head_xy).max() < 1e-4
+    assert np.all(loose.joint_torque[:, 6] == 0.0)
+
+
+def test_lab_forms_read_what_another_labs_sensors_would(tmp_path):
+    """LabForms (issue 67's forms of sensor): hand values of the marker's lever arm, the camera's scale and the
+    converter's step; on a reference campaign, a linkage's reading leads the angle by compliance x torque (so a
+    stiffer linkage reads closer to the truth), and a value out of range is refused naming its key."""
+    from rc1_drake.config import Rc1Error
+    from rc1_drake.synthesize import Case, LabForms, Noise, synthesize_campaign
+
+    lab = LabForms(camera_marker_m=0.05, camera_scale_error=0.01, potentiometer_step_deg=0.5)
+    pose = np.array([[1.0, 2.0, 0.0], [0.0, 0.0, math.pi / 2]])
+    np.testing.assert_allclose(lab.camera(pose), [[1.05 * 1.01, 2.02, 0.0], [0.0, 0.0505, math.pi / 2]], atol=1e-12)
+    np.testing.assert_allclose(lab.quantized(np.radians([0.2, 0.3, -0.74])), np.radians([0.0, 0.5, -0.5]))
+    with pytest.raises(Rc1Error, match=r"^synthesize: effects.reference_camera_marker_m: must lie in \[-0.1, 0.1\]"):
+        LabForms.from_effects({"reference_camera_marker_m": 0.5})
+    silent = Noise().scaled(0.0)
+    readings = {}
+    for compliance in (0.0, 0.01, 0.02):
+        campaign = synthesize_campaign(
+            tmp_path / f"c{compliance}", design=[Case([], 1, seconds=1.0)], truth_model="reference", noise=silent,
+            effects={"reference_linkage_rad_per_Nm": compliance}, seed=3,
+        )  # fmt: skip
+        readings[compliance] = campaign.trials[0].q
+    lead = {c: readings[c] - readings[0.0] for c in (0.01, 0.02)}
+    assert 0.001 < np.abs(lead[0.01]).max() < 0.05  # rad: N m torques through 0.01 rad/N m
+    np.testing.assert_allclose(lead[0.02], 2.0 * lead[0.01], atol=1e-9)
