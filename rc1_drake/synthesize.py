@@ -118,7 +118,8 @@ class LabForms:
     leads the joint's angle by the compliance times the torque the servo gives it (rad per N m). potentiometer_step:
     the readings are quantized by the acquisition's converter (deg). camera_marker: the camera tracks a marker this
     far ahead of the head's centre along its axis (m); camera_scale_error: its floor calibration scales positions
-    about the floor's origin by 1 + this. The hand-measured final position has neither."""
+    about the floor's origin by 1 + this. The trial's initial pose is the camera's (before the robot moves); the
+    hand-measured final position has neither."""
 
     linkage_rad_per_Nm: float = 0.0
     potentiometer_step_deg: float = 0.0
@@ -397,7 +398,7 @@ def _measure(run, scenario, trial_id, noise: Noise, rng, camera, t) -> Trial:
         failed_joints=scenario.failed_joints,
         gait=dataclasses.replace(scenario.gait, joints=[]),
         stop=stop,
-        initial_head_pose=run.state[0, :3].copy(),
+        initial_head_pose=lab.camera(run.state[:1, :3])[0],  # where the lab's camera put the head before it moved
         final_head_xy=run.final_head_xy + rng.normal(0, noise.hand_m, 2),
         t=t,
         q=q,

@@ -201,13 +201,20 @@ def test_lab_forms_read_what_another_labs_sensors_would(tmp_path):
     with pytest.raises(Rc1Error, match=r"^synthesize: effects.reference_camera_marker_m: must lie in \[-0.1, 0.1\]"):
         LabForms.from_effects({"reference_camera_marker_m": 0.5})
     silent = Noise().scaled(0.0)
-    readings = {}
+    readings, starts = {}, {}
     for compliance in (0.0, 0.01, 0.02):
         campaign = synthesize_campaign(
             tmp_path / f"c{compliance}", design=[Case([], 1, seconds=1.0)], truth_model="reference", noise=silent,
             effects={"reference_linkage_rad_per_Nm": compliance}, seed=3,
         )  # fmt: skip
         readings[compliance] = campaign.trials[0].q
+        starts[compliance] = campaign.trials[0].initial_head_pose
     lead = {c: readings[c] - readings[0.0] for c in (0.01, 0.02)}
     assert 0.001 < np.abs(lead[0.01]).max() < 0.05  # rad: N m torques through 0.01 rad/N m
     np.testing.assert_allclose(lead[0.02], 2.0 * lead[0.01], atol=1e-9)
+    marked = synthesize_campaign(
+        tmp_path / "marked", design=[Case([], 1, seconds=1.0)], truth_model="reference", noise=silent,
+        effects={"reference_camera_marker_m": 0.04}, seed=3,
+    ).trials[0]  # fmt: skip
+    yaw = starts[0.0][2]  # the start pose is the camera's: the marker's, 4 cm ahead along the head's axis
+    np.testing.assert_allclose(marked.initial_head_pose, starts[0.0] + [0.04 * np.cos(yaw), 0.04 * np.sin(yaw), 0.0])
