@@ -181,8 +181,8 @@ def synthesize_campaign(
         )
     if truth_model == "drake" and (only := sorted(set(effects or {}) & set(REFERENCE_ONLY))):
         raise Rc1Error(
-            f"synthesize: {', '.join(only)}: only the reference truth model has a floor seam and its own failed-joint "
-            "stop"
+            f"synthesize: {', '.join(only)}: only the reference truth model reads these (a floor seam, its own "
+            "failed-joint stop, its lab's forms)"
         )
     if truth_model == "reference":  # its own forces checked where they are read, before any trial is made
         from .reference import HiddenForces

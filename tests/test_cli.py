@@ -43,6 +43,22 @@ def test_run_writes_summary_json_and_plot(tmp_path, capsys):
         (["run", "--effect", "ground_slope=35"], "effects.ground_slope_deg: must be a number in [0, 20], got 35"),
         (["identify", "data/paper_campaign", "--input-noise-samples", "-1"], "-1 must be at least 0"),
         (["synthesize", "/tmp/rc1_never_written", "--time-limit-s", "-1"], "stop.time_limit_s: must be > 0"),
+        (["synthesize", "/tmp/rc1_never_written", "--form", "bogus=1"], "unknown form 'bogus'"),
+        (
+            ["synthesize", "/tmp/rc1_never_written", "--form", "reference_camera_marker_m=0.05"],
+            "reference_camera_marker_m: only the reference truth model reads these",
+        ),
+        (
+            [
+                "synthesize",
+                "/tmp/rc1_never_written",
+                "--truth-model",
+                "reference",
+                "--form",
+                "reference_camera_scale_error=0.5",
+            ],
+            "effects.reference_camera_scale_error: must lie in [-0.1, 0.1], got 0.5",
+        ),  # fmt: skip
         (["diagnose", "data/paper_campaign", "--candidates", "wind"], "unknown effect 'wind'"),
         (["diagnose", "data/paper_campaign", "--trials", "nominal_9"], "nominal_9"),
         (["diagnose", "data/paper_campaign", "--model-file", "/nonexistent.yaml"], "/nonexistent.yaml"),

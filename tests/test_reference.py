@@ -64,7 +64,7 @@ def test_a_campaign_made_by_the_reference_model_records_its_own_start(tmp_path):
         synthesize_campaign(
             tmp_path / "d", design=[Case([], 1)], truth_model="reference", effects={"head_drag_mu": 0.2}
         )
-    with pytest.raises(Rc1Error, match="floor_seam_Nm: only the reference truth model has a floor seam"):
+    with pytest.raises(Rc1Error, match="floor_seam_Nm: only the reference truth model reads these"):
         synthesize_campaign(tmp_path / "g", design=[Case([], 1)], effects={"floor_seam_Nm": 1.0})
     with pytest.raises(Rc1Error, match="non-negative multiple of the sample period, got 0.015"):
         synthesize_campaign(

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 import dataclasses
 from pathlib import Path
 
@@ -48,6 +49,17 @@ def add_synthesize(sub) -> None:
         metavar="NAME=VALUE",
         help="a physical effect in the truth (EFFECT=VALUE or PARAMETER=VALUE, see rc1 effects); repeatable",
     )
+    syn.add_argument(
+        "--form",
+        type=form_arg,
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="another form of robot or lab, read by the reference truth model only: reference_stop_Nm_per_rad, "
+        "reference_stop_Nm_s_per_rad (its failed joints' stop), reference_linkage_rad_per_Nm, "
+        "reference_potentiometer_step_deg, reference_camera_marker_m, reference_camera_scale_error (its sensors: "
+        "synthesize.LabForms), floor_seam_Nm, floor_seam_x_m; repeatable",
+    )
     syn.add_argument("--noise-scale", type=float_arg, default=1.0, metavar="S", help="multiply every sensor noise by S")
     syn.add_argument("--no-camera", action="store_true", help="leave out the overhead camera columns")
     syn.add_argument(
@@ -55,8 +67,8 @@ def add_synthesize(sub) -> None:
         choices=TRUTH_MODELS,
         default="drake",
         help="drake: this project's Diagram through its servos; reference: the independent planar model "
-        "of reference.py (kinematic joints, its own limit model, the head at rest at its start; "
-        "effects: wheel_toe only)",
+        "of reference.py (kinematic joints, its own limit model, the head at rest at its start; effects: "
+        "wheel_toe, tail_tether, the sensor faults and the discrepancy terms; and --form)",
     )
     syn.add_argument("--sample-period-s", type=float_arg, default=0.01, metavar="DT", help="the sensors' sample period")
     syn.add_argument(
@@ -70,6 +82,18 @@ def add_synthesize(sub) -> None:
                      "of --design, at its lab's sample period and potentiometer noise")  # fmt: skip
     syn.add_argument("--seed", type=int, default=0)
     syn.add_argument("--truth", type=Path, metavar="PATH", help="where to record the truth (JSON)")
+
+
+def form_arg(text: str) -> tuple[str, float]:
+    from ..synthesize import REFERENCE_ONLY
+
+    key, sep, value = text.partition("=")
+    if key not in REFERENCE_ONLY:
+        raise argparse.ArgumentTypeError(f"unknown form {key!r} (known: {', '.join(REFERENCE_ONLY)})")
+    try:
+        return key, float(value if sep else "")
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"form {key!r} needs a number: {key}=VALUE") from None
 
 
 def cmd_synthesize(args) -> int:
@@ -95,6 +119,7 @@ def cmd_synthesize(args) -> int:
     friction = validate_friction(dict(args.friction))
     effects = dict(args.effect)
     validate(Scenario(effects=effects, stop=stop or Stop()), where="command line")
+    effects |= dict(args.form)  # synthesize_campaign refuses them for the drake truth, and checks their values
     campaign = synthesize_campaign(
         args.out,
         design=design,
