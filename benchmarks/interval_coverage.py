@@ -1,7 +1,8 @@
 """Do the 95% intervals hold the truth on data another model made (issue 67, item 5)?
 
     python benchmarks/interval_coverage.py [--seeds 10-17] [--methods program,avs,diagnose]
-                                           [--hidden none,wheel_toe] [--workers 2]
+                                           [--hidden none,wheel_toe] [--form stop|lab|linkage|step|marker|scale]
+                                           [--workers 2]
                                            [--out benchmarks/out/interval_coverage] [--markdown] [--table-only]
 
 Every campaign has the paper's design (2 trials each of no failure, J7, J13 and J7 with synthesize.PAPER_DESIGN's
@@ -12,6 +13,8 @@ their command exactly, and its failed joint is the one the seed draws, a PD stop
 50 Hz, odd at 100 Hz, both with 0.2 deg of potentiometer noise and the starts spread as another lab's
 (paper_rates.ROUGH). Each seed's truth makes two campaigns: nothing hidden, and a wheel toe at its reference
 strength (benchmarks/diagnosis.py's REFERENCE, the one physical library effect reference.py expresses).
+--form lab adds another lab's sensors (draw_lab: potentiometers behind a compliant linkage, a converter's step, a
+camera marker ahead of the head's centre, a camera scale error); linkage, step, marker and scale add one of them.
 
 Each campaign is identified as `rc1 identify --start-rates fit` does, by the program fit and by AVS (3 iterations),
 and diagnosed as `rc1 diagnose` does by default. A row keeps every coefficient's estimate, its reported standard
@@ -60,7 +63,14 @@ HIDDEN = ("none", "wheel_toe")
 # The truth's form: "stop", the failed joint's (below); "lab", that and another lab's sensors besides (synthesize.
 # LabForms: potentiometers on the servos' shafts behind a compliant linkage, a converter's step, a camera marker ahead
 # of the head's centre, a camera scale error), drawn per seed from a stream of its own (the stop's draws stay).
-FORMS = ("stop", "lab")
+# "linkage", "step", "marker", "scale": that and one of the lab's sensors alone (where a lab's result comes from).
+ONE_FORM = {
+    "linkage": "reference_linkage_rad_per_Nm",
+    "step": "reference_potentiometer_step_deg",
+    "marker": "reference_camera_marker_m",
+    "scale": "reference_camera_scale_error",
+}
+FORMS = ("stop", "lab", *ONE_FORM)
 J7_BIAS_DEG = next(c.bias_deg for c in PAPER_DESIGN if c.bias_deg)
 DESIGN = [Case([], 2), Case([7], 2), Case([13], 2), Case([7], 2, bias_deg=J7_BIAS_DEG)]
 
@@ -116,7 +126,7 @@ def draw(seed: int, form: str = "stop") -> Truth:
         stop_Nm_s_per_rad=log_uniform(0.2, 2.0),
         dry_Nm=float(rng.uniform(0.0, 0.3)),
         sample_period_s=0.02 if seed % 2 == 0 else 0.01,
-        lab=draw_lab(seed) if form == "lab" else {},
+        lab={k: v for k, v in draw_lab(seed).items() if form == "lab" or k == ONE_FORM.get(form)},
     )
 
 
