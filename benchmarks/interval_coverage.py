@@ -41,10 +41,12 @@ from doc_blocks import REPO_ROOT, append_row, check_block, load_rows, rows_file,
 
 from rc1_drake.config import FRICTION_NAMES, Z95, Friction, Stop
 from rc1_drake.diagnose import diagnose
+from rc1_drake.diagnose.coordinates import coordinate_bounds
 from rc1_drake.diagnose.loop import CONSIDER_LOG_SD
 from rc1_drake.identify import identify
 from rc1_drake.measurements import load_campaign
 from rc1_drake.synthesize import PAPER_DESIGN, Case, Noise, Variation, synthesize_campaign
+from rc1_drake.sysid.stats import Z95_ONE_SIDED, bound_side
 
 PAGE, BLOCK, WRITER = (
     REPO_ROOT / "docs" / "identification.md",
@@ -156,7 +158,7 @@ def _estimates_identify(result) -> dict:
 
 
 def _estimates_diagnose(result) -> dict:
-    freed = _freed(result)
+    freed = _freed(result) - set(result.at_bound)
     return {
         name: {"value": value, "se": se, "noise_se": None, "interval": math.isfinite(se) and name in freed}
         for name, (value, se) in result.final_coordinates.items()
@@ -214,11 +216,25 @@ def measure(seed: int, hidden: str, method: str, args) -> dict:
     }
 
 
-def holds(estimate: dict, truth: float, key: str = "se") -> bool | None:
+def holds(estimate: dict, truth: float, key: str = "se", name: str = "") -> bool | None:
+    """Whether the estimate's 95% interval holds `truth`: two-sided, or one-sided where `name`'s coordinate sits
+    at a bound of its range (as the report states it, sysid.stats.estimate_text)."""
     se = estimate.get(key)
     if se is None or not math.isfinite(se):
         return None
+    side = bound_side(estimate["value"], *coordinate_bounds(name)) if name else None
+    if side == "<":
+        return truth <= estimate["value"] + Z95_ONE_SIDED * se
+    if side == ">":
+        return truth >= estimate["value"] - Z95_ONE_SIDED * se
     return abs(estimate["value"] - truth) <= Z95 * se
+
+
+def given(name: str, estimate: dict) -> bool:
+    """Whether a report gives the estimate an interval: not a friction coefficient at a bound of its range (no
+    measurement there: Diagnosis.at_bound, identify's identifiable, since 2026-12-03; scored so for earlier rows)."""
+    at_bound = name in FRICTION_NAMES and bound_side(estimate["value"], *coordinate_bounds(name))
+    return bool(estimate["interval"]) and not at_bound
 
 
 def truths(row: dict) -> dict:
@@ -237,26 +253,26 @@ def intervals(rows: list) -> tuple:
     identify, those the sandwich alone would have reported before issue 67 (a coefficient fitted whose sandwich
     standard error is under 30% of it); for a diagnosis, its intervals without the friction it held unidentified).
     An effect accepted where none is hidden is judged against its nested value, 0."""
-    given = held = before = before_held = 0
+    reported = held = before = before_held = 0
     for row in rows:
         # an effect the truth does not have is there at its nested value, 0 (a toe accepted on a null is scored)
         truth = {n: 0.0 for n in row["estimates"] if n not in FRICTION_NAMES} | truths(row)
         for name, estimate in row["estimates"].items():
             if name not in truth:
                 continue
-            if estimate["interval"]:
-                given += 1
-                held += bool(holds(estimate, truth[name]))
-            if "considered_variance" in row and estimate["interval"]:  # the same, without the held friction's part
+            if given(name, estimate):
+                reported += 1
+                held += bool(holds(estimate, truth[name], name=name))
+            if "considered_variance" in row and given(name, estimate):  # the same, without the held friction's part
                 carried = CONSIDER_LOG_SD**2 * row["considered_variance"].get(name, 0.0)
                 narrower = {"value": estimate["value"], "se": math.sqrt(max(estimate["se"] ** 2 - carried, 0.0))}
                 before += 1
-                before_held += bool(holds(narrower, truth[name]))
+                before_held += bool(holds(narrower, truth[name], name=name))
             noise = estimate.get("noise_se")
             if noise is not None and name not in row.get("held", []) and noise < 0.3 * abs(estimate["value"]):
                 before += 1
                 before_held += bool(holds(estimate, truth[name], "noise_se"))
-    return given, held, before, before_held
+    return reported, held, before, before_held
 
 
 def mu_lat_kept(row: dict) -> float | None:
@@ -313,7 +329,7 @@ def table(rows: list) -> str:
         close = f"{sum(abs(v / t - 1) <= 0.25 for v, t in kept)} of {len(kept)}" if kept else "-"
         toe = [r["estimates"].get("wheel_toe_deg") for r in mine] if hidden == "wheel_toe" else []
         found = [e for e in toe if e is not None and e["interval"]]
-        inside = sum(bool(holds(e, diagnosis.REFERENCE["wheel_toe"][1])) for e in found)
+        inside = sum(bool(holds(e, diagnosis.REFERENCE["wheel_toe"][1], name="wheel_toe_deg")) for e in found)
         toe_text = (
             "-" if hidden == "none" or not method.startswith("diagnose") else f"{len(found)} of {len(mine)}, {inside}"
         )

@@ -1024,3 +1024,24 @@ def test_a_held_coefficient_known_to_a_factor_widens_an_effect_by_the_shift_its_
     apart = _linearization({"a": list(a), "b": list(noise - a * (a * noise).sum() / (a * a).sum())}, list(0 * a))
     apart.coordinates[0] = dataclasses.replace(apart.coordinates[0], value=0.5)
     assert considered_variance(apart, ["b"], ["a"])[0] == pytest.approx(0.0, abs=1e-20)
+
+
+def test_friction_at_a_bound_of_its_range_is_reported_without_an_interval():
+    """A free coefficient the fit ran to a bound of (the loop's at_bound: a failed joint's law mis-modelled pushes
+    c_joint to 0.5 on another lab's data) is named with its value and no interval, in the summary and the JSON."""
+    from rc1_drake.diagnose.report import Diagnosis
+    from rc1_drake.diagnose.verdict import Verdict
+
+    result = Diagnosis(
+        campaign="c", start_friction=Friction(), start_effects={}, free=["c_joint", "mu_lat"], rounds=[], waterfall=[],
+        friction=Friction(c_joint=0.5, mu_lat=1.2), effects={}, accepted=[], verdict=Verdict.AMBIGUOUS,
+        explanation="x", misfit_p=0.1, not_detectable=[], where_it_fails=None, simulations=0, wall_s=0.0,
+        final_coordinates={"c_joint": [0.5, 0.1], "mu_lat": [1.2, 0.1]}, at_bound=["c_joint"],
+    )  # fmt: skip
+    lines = result.summary()
+    assert lines[lines.index("added: nothing") + 1] == (
+        "friction at a bound of its range, no interval (no measurement: the model's form cannot follow the data "
+        "there): c_joint=0.5"
+    )
+    assert result.to_json()["at_bound"] == ["c_joint"]
+    assert not any("friction at a bound" in line for line in dataclasses.replace(result, at_bound=[]).summary())

@@ -203,3 +203,25 @@ def test_a_coefficient_the_data_do_not_see_does_not_swing_the_jackknife_of_one_t
     assert u.identifiable[1] and not u.identifiable[3]
     assert u.standard_errors[1] == pytest.approx(max(u.noise_standard_errors[1], math.sqrt(alone)), rel=1e-6)
     assert u.standard_errors[3] == pytest.approx(u.noise_standard_errors[3], rel=1e-9)
+
+
+def test_a_coefficient_at_a_bound_of_its_range_is_no_measurement():
+    """c_joint well seen (relative standard error ~1%) is identifiable inside its range [0, 0.5] and not at its
+    upper bound, where the fit was stopped by the range, not the data (identify's uncertainty, as the diagnosis's
+    at_bound); the same rule (bound_side) makes the report's one-sided text."""
+    from rc1_drake.sysid.parameters import DEFAULT_PARAMETERS
+    from rc1_drake.sysid.stats import bound_side
+
+    rng = np.random.default_rng(3)
+    groups = np.repeat(np.arange(6), 30)
+    x = np.zeros((180, 5))
+    x[:, 0] = _smooth_design(rng, 6, 30)[:, 0]
+    upper = next(p.upper for p in DEFAULT_PARAMETERS if p.name == "c_joint")
+    seen = {}
+    for value in (0.3, upper):
+        y = x[:, 0] * value + 1e-3 * rng.normal(size=180)
+        u = uncertainty(LinearResiduals(x, y, groups), Friction(c_joint=value), input_noise_samples=0)
+        assert u.standard_errors[0] < 0.05 * value
+        seen[value] = u.identifiable[0]
+    assert seen == {0.3: True, upper: False}
+    assert (bound_side(0.3, 0.0, upper), bound_side(upper, 0.0, upper), bound_side(0.0, 0.0, upper)) == (None, ">", "<")

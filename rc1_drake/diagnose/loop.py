@@ -14,8 +14,8 @@ from ..identify.avs import avs
 from ..residuals import where_it_fails
 from ..sysid.evaluate import Checkpoint, Evaluator
 from ..sysid.residual import trial_residual
-from ..sysid.stats import interval95
-from .coordinates import START, physics_names
+from ..sysid.stats import bound_side, interval95
+from .coordinates import START, coordinate_bounds, physics_names
 from .decide import NOT_DETECTABLE, decide, held_out_by_simulation, rank, screen_friction, unrefitted
 from .fit import considered_variance, fit, polish, starts_fitted
 from .linearize import Linearization, linearize, moved, relinearize, with_replay_error
@@ -523,6 +523,7 @@ class _Search:
             final_coordinates={n: v for n, v in final.items() if n not in self.nuisance},
             starts={n: v for n, v in final.items() if n in self.nuisance},
             considered=considered,
+            at_bound=[n for n in self.free if bound_side(lin.coordinate(n).value, *coordinate_bounds(n))],
             considered_variance={
                 n: float(c) for n, c in zip(final_fit.names, carried, strict=True) if n not in self.nuisance
             },

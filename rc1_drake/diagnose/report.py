@@ -113,6 +113,9 @@ class Diagnosis:
     # variance they add to its interval at a factor e (fit.considered_variance), already in final_coordinates' se
     considered: list[str] = dataclasses.field(default_factory=list)
     considered_variance: dict[str, float] = dataclasses.field(default_factory=dict)
+    # the free friction that ended at a bound of its range: no measurement of it (the model's form cannot follow the
+    # data there), given no interval
+    at_bound: list[str] = dataclasses.field(default_factory=list)
     stop_reason: str = ""
     friction_search: str = ""  # at the start, where no coefficient was identified (loop.far_friction)
     resumed: int = 0  # of the simulations, results taken from a checkpoint of an interrupted run
@@ -160,6 +163,7 @@ class Diagnosis:
             "starts": self.starts,
             "considered": self.considered,
             "considered_variance": self.considered_variance,
+            "at_bound": self.at_bound,
             "stop_reason": self.stop_reason,
             "friction_search": self.friction_search,
             "waterfall": self.waterfall,
@@ -188,6 +192,11 @@ class Diagnosis:
             rate_text(self.verdict, trials=self.trials),
             f"added: {', '.join(added) + ' (95%' + carried + ')' if added else 'nothing'}",
         ]
+        if self.at_bound:
+            lines.append(
+                "friction at a bound of its range, no interval (no measurement: the model's form cannot follow the "
+                f"data there): {', '.join(f'{n}={getattr(self.friction, n):.3g}' for n in self.at_bound)}"
+            )
         risen = []
         if self.waterfall:
             line, risen = headline(self.waterfall)

@@ -148,7 +148,7 @@ def uncertainty(
     mis-modelled law, a bias the trial jackknife cannot see (findings (34)). The jackknife's steps move only
     those: a direction the data do not see would swing every leave-one-out step along it, and through the
     correlations widen what the data do see. A parameter is identifiable when its relative standard error is below
-    `max_relative_error`. Costs one residual evaluation per free parameter, plus one.
+    `max_relative_error` and it lies inside its bounds. Costs one residual evaluation per free parameter, plus one.
 
     The Jacobian is taken in the parameters' own units (forward differences of 5% of the value, at least
     0.5% of the bounds' range for a coefficient, 2% of the range for an effect parameter), not in their
@@ -182,7 +182,11 @@ def uncertainty(
     se = [math.inf if null[i] else float(math.sqrt(max(cov[i, i], 0.0))) for i in range(n)]
     d = np.sqrt(np.clip(np.diag(cov), 1e-300, None))
     corr = np.where(np.outer(d, d) > 0, cov / np.outer(d, d), 0.0)
-    identifiable = [math.isfinite(s) and s < max_relative_error * abs(v) for s, v in zip(se, values, strict=True)]
+    # a coefficient at a bound of its range is no measurement: the model's form, not the data, stopped it there
+    identifiable = [
+        math.isfinite(s) and s < max_relative_error * abs(v) and bound_side(v, p.lower, p.upper) is None
+        for s, v, p in zip(se, values, free, strict=True)
+    ]
     return Uncertainty(
         names=[p.name for p in free],
         values=values,
@@ -211,11 +215,17 @@ def p_text(p: float, *, bare: bool = False) -> str:
     return f"{p:.2g}" if bare else f"p = {p:.2g}"
 
 
+def bound_side(value: float, lower=-math.inf, upper=math.inf) -> str | None:
+    """Where `value` sits: "<" at its lower bound, ">" at its upper, None inside [lower, upper]."""
+    scale = max(abs(lower) if math.isfinite(lower) else 0.0, abs(upper) if math.isfinite(upper) else 0.0, 1.0)
+    return "<" if value <= lower + 1e-9 * scale else ">" if value >= upper - 1e-9 * scale else None
+
+
 def estimate_text(name: str, value: float, standard_error: float, lower=-math.inf, upper=math.inf) -> str:
     """'name=v+-h' (95%); at a bound of [lower, upper] one-sided, 'name=0 (at its bound; < 0.12 at 95%)', where the
     fit's clipped linearization gives no two-sided interval (and none at all when the data do not move it off)."""
     scale = max(abs(lower) if math.isfinite(lower) else 0.0, abs(upper) if math.isfinite(upper) else 0.0, 1.0)
-    side = "<" if value <= lower + 1e-9 * scale else ">" if value >= upper - 1e-9 * scale else None
+    side = bound_side(value, lower, upper)
     if side is None:
         return f"{name}={value:.3g}+-{Z95 * standard_error:.2g}"
     if not math.isfinite(standard_error) or standard_error <= 1e-9 * scale:
