@@ -1045,3 +1045,38 @@ def test_friction_at_a_bound_of_its_range_is_reported_without_an_interval():
     )
     assert result.to_json()["at_bound"] == ["c_joint"]
     assert not any("friction at a bound" in line for line in dataclasses.replace(result, at_bound=[]).summary())
+
+
+def test_the_reported_interval_takes_the_jackknife_over_cases_where_twins_share_an_error():
+    """Two trials of each of four cases share an error of the model's form (as another lab's linkage moves every
+    trial of a case alike): leaving one trial out keeps its twin's, so the fit's own interval (sandwich and trial
+    jackknife) misses the truth often; the case jackknife (each case left out, by hand: least squares of the rest)
+    sees it, and the reported interval (its variance widened to Student's t at 3 degrees of freedom) holds. Measured
+    over 200 draws: 69% of the fit's 95% intervals hold, 92.5% of the reported ones."""
+    from rc1_drake.diagnose.fit import case_jackknife, reported_standard_errors
+
+    rng = np.random.default_rng(11)
+    kinds = [([], 0.0), ([7], 0.0), ([13], 0.0), ([7], -0.9)] * 2
+    trials = [
+        dataclasses.replace(_FAKE_TRIAL, trial_id=f"t{k}", failed_joints=j, gait=Gait(bias_deg=bias))
+        for k, (j, bias) in enumerate(kinds)
+    ]
+    held = {"fit": 0, "reported": 0}
+    for draw in range(200):
+        x = [rng.normal(1.0, 0.3, 12) for _ in trials]
+        shared = rng.normal(0.0, 0.3, 4)  # the case's error, in units of the coordinate
+        r0 = [-(0.5 + shared[k % 4]) * x[k] + 0.1 * rng.normal(size=12) for k in range(len(trials))]
+        lin = dataclasses.replace(
+            _linearization({"a": [0 * v for v in x], "b": x}, r0, trials=len(trials)), trials=trials
+        )
+        fitted = fit(lin, ["b"])
+        reported = reported_standard_errors(lin, fitted)
+        if draw == 0:  # by hand: the case jackknife of the least-squares steps without each case
+            steps = [np.linalg.lstsq(np.concatenate([x[k] for k in range(8) if k % 4 != g])[:, None],
+                                     -np.concatenate([r0[k] for k in range(8) if k % 4 != g]), rcond=None)[0][0]
+                     for g in range(4)]  # fmt: skip
+            assert case_jackknife(lin, ["b"])[0, 0] == pytest.approx(0.75 * np.sum((steps - np.mean(steps)) ** 2))
+            assert reported[0] >= fitted.standard_errors[0]
+        held["fit"] += abs(fitted.values[0] - 0.5) <= Z95 * fitted.standard_errors[0]
+        held["reported"] += abs(fitted.values[0] - 0.5) <= Z95 * reported[0]
+    assert held["fit"] < 0.75 * 200 and held["reported"] > 0.88 * 200, held

@@ -6,7 +6,9 @@ import dataclasses
 import math
 
 import numpy as np
+from scipy.stats import t as student_t
 
+from ..config import Z95
 from ..sysid.optimize import bounded_step
 from ..sysid.stats import channel_variances, larger_covariance
 from .linearize import Linearization, moved
@@ -118,15 +120,21 @@ def _start_rows_variance(lin: Linearization, coords, k: int, d) -> float:
     return float(e @ e) / max(len(e) - len(_own_start(coords, k)), 1)
 
 
+def _step_bounds(coords) -> tuple:
+    """A fit's bounds on its steps: each coordinate's range, an effect's within TRUST_STEPS probe steps."""
+    reach = np.array([math.inf if c.owner == "friction" else TRUST_STEPS * c.step for c in coords])
+    lower = np.maximum(np.array([c.lower - c.value for c in coords]), -reach)
+    upper = np.minimum(np.array([c.upper - c.value for c in coords]), reach)
+    return lower, upper
+
+
 def fit(lin: Linearization, names: list[str]) -> Fit:
     """Bounded weighted linear least squares over `names` (each trial's rows times its weight; a trial's
     start, where among them, fitted to its first START_FIT_S only: _solve), its covariance (the sandwich
     with channel variances and input noise, or the trial jackknife's where larger: JACKKNIFE_RULE), and
     leave-one-trial-out predictions."""
     coords = [lin.coordinate(n) for n in names]
-    reach = np.array([math.inf if c.owner == "friction" else TRUST_STEPS * c.step for c in coords])
-    lower = np.maximum(np.array([c.lower - c.value for c in coords]), -reach)
-    upper = np.minimum(np.array([c.upper - c.value for c in coords]), reach)
+    lower, upper = _step_bounds(coords)
     everything = list(range(len(lin.trials)))
     x_all, r_all, channels, counts = lin.rows(names, everything, weighted=True)
     d = _solve(lin, coords, everything, lower, upper)
@@ -192,6 +200,49 @@ def fit(lin: Linearization, names: list[str]) -> Fit:
         held_out_steps=held_steps,
         aic=aic,
     )
+
+
+def case_jackknife(lin: Linearization, names: list[str]) -> np.ndarray | None:
+    """The jackknife over the trials' cases (none, J7, J13, J7+bias, ...) of the fit over `names`: each case left
+    out in turn and the rest fitted (bounded, starts profiled, as `fit`), (G - 1)/G times the steps' scatter, over
+    the physics (a start's rows are zero). Trials of one case share their design and with it any error of the
+    model's form (another lab's linkage, its failed joint's law), which leaving one trial out keeps in its twins and
+    leaving the case out does not (sysid.stats.uncertainty's jackknife over failed joints, for identify). None
+    under three cases."""
+    cases = list(dict.fromkeys(t.case for t in lin.trials))
+    if len(cases) < 3:
+        return None
+    coords = [lin.coordinate(n) for n in names]
+    lower, upper = _step_bounds(coords)
+    steps = np.array(
+        [_solve(lin, coords, [k for k, t in enumerate(lin.trials) if t.case != case], lower, upper) for case in cases]
+    )
+    steps[:, [i for i, c in enumerate(coords) if c.start_of is not None]] = 0.0
+    centred = steps - steps.mean(axis=0)
+    return (len(cases) - 1) / len(cases) * centred.T @ centred
+
+
+def _t_over_z(dof: int) -> float:
+    """Student's t 97.5% quantile over the normal's at `dof`: a jackknife of G groups has G - 1 degrees of freedom,
+    so its +-Z95 interval is this much too short."""
+    return float(student_t.ppf(0.975, dof) / Z95)
+
+
+def reported_standard_errors(lin: Linearization, fitted: Fit) -> np.ndarray:
+    """`fitted`'s standard errors as a report gives them: its covariance, or the jackknife over cases (case_jackknife,
+    scaled by Student's t at its G - 1 degrees of freedom) where that is larger, in every direction of the physics
+    (stats.larger_covariance); a start's, and a coordinate no row moves (infinite), as the fit has them. The
+    decisions use the fit's own."""
+    jackknife = case_jackknife(lin, fitted.names)
+    if jackknife is not None:  # widened to a +-Z95 interval at its degrees of freedom
+        jackknife = jackknife * _t_over_z(len({t.case for t in lin.trials}) - 1) ** 2
+    se = fitted.standard_errors.copy()
+    physics = [i for i, n in enumerate(fitted.names) if lin.coordinate(n).start_of is None and math.isfinite(se[i])]
+    if jackknife is None or not physics:
+        return se
+    block = np.ix_(physics, physics)
+    se[physics] = np.sqrt(np.clip(np.diag(larger_covariance(fitted.covariance[block], jackknife[block])), 0.0, None))
+    return se
 
 
 def considered_variance(lin: Linearization, names: list[str], considered: list[str]) -> np.ndarray:

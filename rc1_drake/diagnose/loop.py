@@ -17,7 +17,7 @@ from ..sysid.residual import trial_residual
 from ..sysid.stats import bound_side, interval95
 from .coordinates import START, coordinate_bounds, physics_names
 from .decide import NOT_DETECTABLE, decide, held_out_by_simulation, rank, screen_friction, unrefitted
-from .fit import considered_variance, fit, polish, starts_fitted
+from .fit import considered_variance, fit, polish, reported_standard_errors, starts_fitted
 from .linearize import Linearization, linearize, moved, relinearize, with_replay_error
 from .probe import suggest_experiments
 from .replays import INPUT_NOISE_SAMPLES, evaluate, replay_and_score
@@ -483,7 +483,7 @@ class _Search:
         carried = considered_variance(lin, final_fit.names, considered)
         final = {
             n: [float(lin.coordinate(n).value), math.sqrt(float(se) ** 2 + CONSIDER_LOG_SD**2 * c)]
-            for n, se, c in zip(final_fit.names, final_fit.standard_errors, carried, strict=True)
+            for n, se, c in zip(final_fit.names, reported_standard_errors(lin, final_fit), carried, strict=True)
         }
         not_detectable = list(unseen)
         for c in (c for r in self.rounds for c in r.candidates if c.status == NOT_DETECTABLE):
