@@ -57,9 +57,10 @@ ROWS = rows_file("interval_coverage")
 CHOSE = range(0, 10)  # seeds kept for choosing rules; the table reports seeds from 10 on
 METHODS = ("program", "avs", "diagnose")
 # The rows of today's code, by method: identify's with the jackknife over failed joints (sysid.stats.uncertainty), the
-# diagnosis's with the friction it holds unidentified carried in its intervals (diagnose.loop.CONSIDER_LOG_SD);
-# earlier rows stay in the rows file (method_of).
-VERSIONS = {"program": "2026-12-02", "avs": "2026-12-02", "diagnose": "2026-12-03"}
+# diagnosis's with the friction it holds unidentified carried in its intervals (diagnose.loop.CONSIDER_LOG_SD) and
+# the jackknife over cases (diagnose.fit.reported_standard_errors, "2026-12-03b"); earlier rows stay in the rows file
+# (method_of).
+VERSIONS = {"program": "2026-12-02", "avs": "2026-12-02", "diagnose": "2026-12-03b"}
 LAW = "+failed-joint-law"  # a diagnosis with the failed joints' law fitted as nuisance (diagnose's failed_joint_law)
 HIDDEN = ("none", "wheel_toe")
 # The truth's form: "stop", the failed joint's (below); "lab", that and another lab's sensors besides (synthesize.
