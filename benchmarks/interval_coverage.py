@@ -183,7 +183,8 @@ def measure(seed: int, hidden: str, method: str, args) -> dict:
         extra = {"verdict": str(result.verdict), "accepted": result.accepted, "version": VERSIONS[method] + law,
                  "final_friction": dataclasses.asdict(result.friction),
                  "friction_search": result.friction_search, "considered": result.considered,
-                 "considered_variance": result.considered_variance}  # fmt: skip
+                 "considered_variance": result.considered_variance,
+                 "fit_standard_errors": result.fit_standard_errors}  # fmt: skip
     else:
         iterations = 3 if method == "avs" else 10
         result = identify(
@@ -252,7 +253,8 @@ def truths(row: dict) -> dict:
 def intervals(rows: list) -> tuple:
     """(reported intervals, of which hold the truth; the narrower intervals of before, and of which hold it: for
     identify, those the sandwich alone would have reported before issue 67 (a coefficient fitted whose sandwich
-    standard error is under 30% of it); for a diagnosis, its intervals without the friction it held unidentified).
+    standard error is under 30% of it); for a diagnosis, its fit's own (the decisions'), before the jackknife over
+    cases and the friction it held unidentified widened them (rows before 2026-12-03b: without the held friction).
     An effect accepted where none is hidden is judged against its nested value, 0."""
     reported = held = before = before_held = 0
     for row in rows:
@@ -264,9 +266,10 @@ def intervals(rows: list) -> tuple:
             if given(name, estimate):
                 reported += 1
                 held += bool(holds(estimate, truth[name], name=name))
-            if "considered_variance" in row and given(name, estimate):  # the same, without the held friction's part
+            if "considered_variance" in row and given(name, estimate):  # the fit's own, or without the held friction
                 carried = CONSIDER_LOG_SD**2 * row["considered_variance"].get(name, 0.0)
-                narrower = {"value": estimate["value"], "se": math.sqrt(max(estimate["se"] ** 2 - carried, 0.0))}
+                own = row.get("fit_standard_errors", {}).get(name, math.sqrt(max(estimate["se"] ** 2 - carried, 0.0)))
+                narrower = {"value": estimate["value"], "se": own}
                 before += 1
                 before_held += bool(holds(narrower, truth[name], name=name))
             noise = estimate.get("noise_se")
@@ -313,8 +316,9 @@ def table(rows: list) -> str:
         " The 95% intervals a report gives (its identifiable coefficients; a diagnosis's free friction and accepted"
         " effects) and how many hold the truth (an effect accepted where none is hidden, against 0); before them, the"
         " narrower intervals of before: identify's sandwich alone (every residual independent, identifiable under 30%:"
-        " before issue 67), the diagnosis's without the friction it holds unidentified (its intervals carry it, known"
-        " to a factor 2, since 2026-12-03); mu_lat within 25% of the truth; the toe found, and its interval holding:",
+        " before issue 67), the diagnosis's fit's own (what its decisions use; its reported intervals take the"
+        " jackknife over cases where wider and carry the friction it holds unidentified, known to a factor 2);"
+        " mu_lat within 25% of the truth; the toe found, and its interval holding:",
         "",
         "| form | method | hidden | campaigns | narrower: given, hold | reported: given, hold | mu_lat within 25% "
         "| toe found, holds | median min |",

@@ -524,6 +524,11 @@ class _Search:
             starts={n: v for n, v in final.items() if n in self.nuisance},
             considered=considered,
             at_bound=[n for n in self.free if bound_side(lin.coordinate(n).value, *coordinate_bounds(n))],
+            fit_standard_errors={
+                n: float(se)
+                for n, se in zip(final_fit.names, final_fit.standard_errors, strict=True)
+                if n not in self.nuisance
+            },  # fmt: skip
             considered_variance={
                 n: float(c) for n, c in zip(final_fit.names, carried, strict=True) if n not in self.nuisance
             },

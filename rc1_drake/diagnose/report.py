@@ -116,6 +116,9 @@ class Diagnosis:
     # the free friction that ended at a bound of its range: no measurement of it (the model's form cannot follow the
     # data there), given no interval
     at_bound: list[str] = dataclasses.field(default_factory=list)
+    # per final coordinate, the fit's own standard error (what the decisions use): before the case jackknife and the
+    # held friction widened it (fit.reported_standard_errors, fit.considered_variance)
+    fit_standard_errors: dict[str, float] = dataclasses.field(default_factory=dict)
     stop_reason: str = ""
     friction_search: str = ""  # at the start, where no coefficient was identified (loop.far_friction)
     resumed: int = 0  # of the simulations, results taken from a checkpoint of an interrupted run
@@ -164,6 +167,7 @@ class Diagnosis:
             "considered": self.considered,
             "considered_variance": self.considered_variance,
             "at_bound": self.at_bound,
+            "fit_standard_errors": self.fit_standard_errors,
             "stop_reason": self.stop_reason,
             "friction_search": self.friction_search,
             "waterfall": self.waterfall,
