@@ -184,7 +184,7 @@ def measure(seed: int, hidden: str, method: str, args) -> dict:
                  "final_friction": dataclasses.asdict(result.friction),
                  "friction_search": result.friction_search, "considered": result.considered,
                  "considered_variance": result.considered_variance,
-                 "fit_standard_errors": result.fit_standard_errors}  # fmt: skip
+                 "fit_standard_errors": result.fit_standard_errors, "at_bound": result.at_bound}  # fmt: skip
     else:
         iterations = 3 if method == "avs" else 10
         result = identify(
