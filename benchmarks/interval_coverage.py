@@ -39,14 +39,14 @@ import numpy as np
 from calibrate import seeds as parse_seeds
 from doc_blocks import REPO_ROOT, append_row, check_block, load_rows, rows_file, write_block
 
-from rc1_drake.config import FRICTION_NAMES, Z95, Friction, Stop
+from rc1_drake.config import FRICTION_NAMES, Friction, Stop
 from rc1_drake.diagnose import diagnose
 from rc1_drake.diagnose.coordinates import coordinate_bounds
 from rc1_drake.diagnose.loop import CONSIDER_LOG_SD
 from rc1_drake.identify import identify
 from rc1_drake.measurements import load_campaign
 from rc1_drake.synthesize import PAPER_DESIGN, Case, Noise, Variation, synthesize_campaign
-from rc1_drake.sysid.stats import Z95_ONE_SIDED, bound_side
+from rc1_drake.sysid.stats import bound_side, reported_interval
 
 PAGE, BLOCK, WRITER = (
     REPO_ROOT / "docs" / "identification.md",
@@ -220,16 +220,12 @@ def measure(seed: int, hidden: str, method: str, args) -> dict:
 
 def holds(estimate: dict, truth: float, key: str = "se", name: str = "") -> bool | None:
     """Whether the estimate's 95% interval holds `truth`: two-sided, or one-sided where `name`'s coordinate sits
-    at a bound of its range (as the report states it, sysid.stats.estimate_text)."""
+    at a bound of its range (as the report states it, sysid.stats.reported_interval)."""
     se = estimate.get(key)
     if se is None or not math.isfinite(se):
         return None
-    side = bound_side(estimate["value"], *coordinate_bounds(name)) if name else None
-    if side == "<":
-        return truth <= estimate["value"] + Z95_ONE_SIDED * se
-    if side == ">":
-        return truth >= estimate["value"] - Z95_ONE_SIDED * se
-    return abs(estimate["value"] - truth) <= Z95 * se
+    low, high = reported_interval(estimate["value"], se, *(coordinate_bounds(name) if name else ()))
+    return low <= truth <= high
 
 
 def given(name: str, estimate: dict) -> bool:

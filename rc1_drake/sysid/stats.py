@@ -221,17 +221,29 @@ def bound_side(value: float, lower=-math.inf, upper=math.inf) -> str | None:
     return "<" if value <= lower + 1e-9 * scale else ">" if value >= upper - 1e-9 * scale else None
 
 
+def reported_interval(value: float, standard_error: float, lower=-math.inf, upper=math.inf) -> tuple[float, float]:
+    """The 95% interval a report states: value +- Z95 se inside [lower, upper]; at a bound one-sided, open on the
+    bound's side (value + Z95_ONE_SIDED se at the lower, value - it at the upper), where the fit's clipped
+    linearization gives no two-sided interval."""
+    side = bound_side(value, lower, upper)
+    if side is None:
+        return value - Z95 * standard_error, value + Z95 * standard_error
+    if side == "<":
+        return -math.inf, value + Z95_ONE_SIDED * standard_error
+    return value - Z95_ONE_SIDED * standard_error, math.inf
+
+
 def estimate_text(name: str, value: float, standard_error: float, lower=-math.inf, upper=math.inf) -> str:
-    """'name=v+-h' (95%); at a bound of [lower, upper] one-sided, 'name=0 (at its bound; < 0.12 at 95%)', where the
-    fit's clipped linearization gives no two-sided interval (and none at all when the data do not move it off)."""
+    """'name=v+-h' (95%); at a bound of [lower, upper] one-sided, 'name=0 (at its bound; < 0.12 at 95%)'
+    (reported_interval), and no interval at all when the data do not move it off."""
     scale = max(abs(lower) if math.isfinite(lower) else 0.0, abs(upper) if math.isfinite(upper) else 0.0, 1.0)
     side = bound_side(value, lower, upper)
     if side is None:
         return f"{name}={value:.3g}+-{Z95 * standard_error:.2g}"
     if not math.isfinite(standard_error) or standard_error <= 1e-9 * scale:
         return f"{name}={value:.3g} (at its bound)"
-    bound = value + Z95_ONE_SIDED * standard_error if side == "<" else value - Z95_ONE_SIDED * standard_error
-    return f"{name}={value:.3g} (at its bound; {side} {bound:.2g} at 95%)"
+    low, high = reported_interval(value, standard_error, lower, upper)
+    return f"{name}={value:.3g} (at its bound; {side} {high if side == '<' else low:.2g} at 95%)"
 
 
 def wald_p(fitted, names: list[str]) -> float:
