@@ -62,6 +62,7 @@ METHODS = ("program", "avs", "diagnose")
 # (method_of).
 VERSIONS = {"program": "2026-12-02", "avs": "2026-12-02", "diagnose": "2026-12-03b"}
 LAW = "+failed-joint-law"  # a diagnosis with the failed joints' law fitted as nuisance (diagnose's failed_joint_law)
+LINKAGE = "+linkage"  # a diagnosis offered the servos' linkage (effects.physical.ServoLinkage) beside the physical ones
 HIDDEN = ("none", "wheel_toe")
 # The truth's form: "stop", the failed joint's (below); "lab", that and another lab's sensors besides (synthesize.
 # LabForms: potentiometers on the servos' shafts behind a compliant linkage, a converter's step, a camera marker ahead
@@ -173,12 +174,14 @@ def _freed(result) -> set:
 
 def measure(seed: int, hidden: str, method: str, args) -> dict:
     campaign, truth = campaign_of(seed, hidden, args.out, args.form)
-    checkpoint = args.out / "checkpoints" / f"{'' if args.form == 'stop' else args.form + '-'}{hidden}-{seed}-{method}"
-    law = LAW if args.failed_joint_law else ""
+    stem = f"{'' if args.form == 'stop' else args.form + '-'}{hidden}-{seed}-{method}"
+    checkpoint = args.out / "checkpoints" / (stem + ("-linkage" if args.linkage else ""))
+    law = (LAW if args.failed_joint_law else "") + (LINKAGE if args.linkage else "")
+    candidates = ["physical", "servo_linkage"] if args.linkage else None
     started = time.perf_counter()
     if method == "diagnose":
         result = diagnose(campaign, workers=args.workers, probe_study=False, start_rates="fit", checkpoint=checkpoint,
-                          failed_joint_law=args.failed_joint_law)  # fmt: skip
+                          failed_joint_law=args.failed_joint_law, candidates=candidates)  # fmt: skip
         estimates = _estimates_diagnose(result)
         extra = {"verdict": str(result.verdict), "accepted": result.accepted, "version": VERSIONS[method] + law,
                  "final_friction": dataclasses.asdict(result.friction),
@@ -236,13 +239,15 @@ def given(name: str, estimate: dict) -> bool:
 
 
 def truths(row: dict) -> dict:
-    """The row's true values: the friction, the hidden effect, and the failed joint's law in the model's form (its
-    compliant stop and dry torque are reference.py's, effects.CompliantStop and JointCoulombFriction)."""
+    """The row's true values: the friction, the hidden effect, the failed joint's law in the model's form (its
+    compliant stop and dry torque are reference.py's, effects.CompliantStop and JointCoulombFriction) and the lab's
+    linkage (reference.py's readings lead their joints by c tau, as effects.ServoLinkage's)."""
     law = row["failed_joint"]
     return row["truth"] | {
         "joint_coulomb_Nm": law["dry_Nm"],
         "stop_compliance_rad_per_Nm": 1.0 / law["stop_Nm_per_rad"],
         "stop_d_Nm_s_per_rad": law["stop_Nm_s_per_rad"],
+        "linkage_compliance_rad_per_Nm": row.get("lab", {}).get("reference_linkage_rad_per_Nm", 0.0),
     }
 
 
@@ -293,10 +298,12 @@ def method_of(row: dict) -> str:
     version = row.get("version")
     if version == VERSIONS[row["method"]] + LAW:
         return row["method"] + ", failed-joint law"
+    if version == VERSIONS[row["method"]] + LINKAGE:
+        return row["method"] + ", linkage offered"
     return row["method"] if version == VERSIONS[row["method"]] else row["method"] + ", before"
 
 
-TABLED = [*METHODS, "diagnose, failed-joint law"]
+TABLED = [*METHODS, "diagnose, failed-joint law", "diagnose, linkage offered"]
 
 
 def form_of(row: dict) -> str:
@@ -355,6 +362,7 @@ def main():
     parser.add_argument("--table-only", action="store_true")
     parser.add_argument("--form", choices=FORMS, default="stop", help="the truth's form (FORMS)")
     parser.add_argument("--failed-joint-law", action="store_true", help="diagnose with the failed joints' law fitted")
+    parser.add_argument("--linkage", action="store_true", help="diagnose with the servos' linkage among the candidates")
     args = parser.parse_args()
     methods, hidden = args.methods.split(","), args.hidden.split(",")
     if unknown := sorted(set(methods) - set(METHODS)) + sorted(set(hidden) - set(HIDDEN)):
@@ -363,7 +371,8 @@ def main():
         check_block(PAGE, BLOCK, WRITER)
     args.out.mkdir(parents=True, exist_ok=True)
     done = {(r["seed"], r["hidden"], method_of(r), form_of(r)) for r in load_rows(ROWS)}
-    label = {"diagnose": "diagnose, failed-joint law"} if args.failed_joint_law else {}  # identify ignores it
+    label = {"diagnose": "diagnose, failed-joint law"} if args.failed_joint_law else {}  # identify ignores both
+    label = {"diagnose": "diagnose, linkage offered"} if args.linkage else label
     jobs = [(s, h, m) for s in parse_seeds(args.seeds) for h in hidden for m in methods
             if (s, h, label.get(m, m), args.form) not in done]  # fmt: skip
     for k, (seed, what, method) in enumerate([] if args.table_only else jobs, 1):

@@ -30,7 +30,7 @@ from pydrake.systems.primitives import (
 )
 
 from .config import Scenario
-from .effects import commanded_gait, stop_backstops
+from .effects import commanded_gait, running_servo, stop_backstops
 from .friction import FrictionForces
 from .gait import add_gait_source, serpenoid_parameters
 from .model import RC1Plant, add_rc1_plant
@@ -60,7 +60,7 @@ def build_key(scenario: Scenario, joint_reference=None) -> tuple:
         source = (tuple(amp), tuple(omega), tuple(phase))
     else:
         source = ("joint_reference", id(joint_reference))
-    s, n = scenario.servo, scenario.numerics
+    s, n = running_servo(scenario.servo, scenario.effects), scenario.numerics
     return source + (
         s.kp_Nm_per_rad,
         s.ki_Nm_per_rad_s,
@@ -108,7 +108,7 @@ def add_friction(builder, rc1, servo_power, servo_command_port, scenario: Scenar
     the servos' torque, between the plant's state, the servos' command and power, and the plant's applied
     generalized force and actuation."""
     plant = rc1.plant
-    servo = scenario.servo
+    servo = running_servo(scenario.servo, scenario.effects)
     friction = builder.AddSystem(
         FrictionForces(
             plant,
@@ -159,7 +159,9 @@ def build_diagram(scenario: Scenario, *, joint_reference=None) -> RC1Diagram:
         source = builder.AddSystem(TrajectorySource(joint_reference, output_derivative_order=1))
         source.set_name("joint_reference")
         desired_state, bias = source.get_output_port(), None
-    power, servo_command = add_servos(builder, rc1, desired_state, scenario.servo, scenario.numerics.time_step_s)
+    power, servo_command = add_servos(
+        builder, rc1, desired_state, running_servo(scenario.servo, scenario.effects), scenario.numerics.time_step_s
+    )
     friction = add_friction(builder, rc1, power, servo_command, scenario)
     servo_torque = friction.GetOutputPort("servo_torque")
 

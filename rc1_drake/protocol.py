@@ -165,8 +165,8 @@ class Run:
 
 
 class Session:
-    """One built Diagram with its Simulator, reused for every run whose build_key matches (the Drake
-    engine; engine.CompiledSession is its compiled twin)."""
+    """One built Diagram with its Simulator, reused for every run whose build_key matches, built anew for one that
+    does not (the Drake engine; engine.CompiledSession is its compiled twin)."""
 
     engine = "drake"
 
@@ -175,7 +175,7 @@ class Session:
         trajectory = getattr(joint_reference, "trajectory", joint_reference)
         self.built = build_diagram(scenario, joint_reference=trajectory)
         self.simulator = Simulator(self.built.diagram)
-        self.joint_reference = trajectory
+        self.joint_reference = self.following = trajectory  # what it was built with (its key), what it follows
 
     @property
     def geometry(self) -> ChainGeometry:
@@ -183,16 +183,19 @@ class Session:
 
     def set_joint_reference(self, joint_reference) -> None:
         """Follow another reference (same kind as the one this Session was built with) from the next run."""
-        trajectory = getattr(joint_reference, "trajectory", joint_reference)
-        self.built.diagram.GetSubsystemByName("joint_reference").UpdateTrajectory(trajectory)
+        self.following = getattr(joint_reference, "trajectory", joint_reference)
+        self.built.diagram.GetSubsystemByName("joint_reference").UpdateTrajectory(self.following)
 
     def simulate(self, scenario: Scenario, *, initial=None, sensitivities=()) -> Run:
         """Run `scenario` (from `initial`, a plant state, if given) on this Session's Diagram."""
         if sensitivities:
             raise Rc1Error("sensitivities need the compiled engine (--engine compiled)")
+        if build_key(scenario, self.joint_reference) != self.built.build_key:  # gait, servo gains or numerics
+            self.built = build_diagram(scenario, joint_reference=self.joint_reference)
+            self.simulator = Simulator(self.built.diagram)
+            if self.following is not self.joint_reference:
+                self.set_joint_reference(self.following)
         built, simulator = self.built, self.simulator
-        if build_key(scenario, self.joint_reference) != built.build_key:
-            raise ValueError("scenario needs a different Diagram (gait, servo gains or numerics differ)")
         context = simulator.get_mutable_context()
         configure_context(built, context, scenario, initial)
         plant = built.plant

@@ -247,6 +247,7 @@ def tracking_rms_deg(run: Run, trial: Trial) -> float:
     working = [j - 1 for j in trial.working_joints]
     t = trial.t - trial.t[0]
     inside = t <= run.t[-1] + 1e-9
-    read = sensor_model(run.scenario.effects).potentiometers(run.q)
+    sensors = sensor_model(run.scenario.effects)
+    read = sensors.potentiometers(run.q + sensors.linkage_rad_per_Nm * run.servo_torque)  # the shafts, read
     sim = np.column_stack([np.interp(t[inside], run.t, read[:, j]) for j in working])
     return float(np.degrees(np.sqrt(np.mean((sim - trial.q[inside][:, working]) ** 2))))

@@ -104,6 +104,7 @@ REFERENCE_ONLY = (
 )  # fmt: skip
 REFERENCE_EFFECTS = (
     "wheel_toe_deg",
+    "linkage_compliance_rad_per_Nm",  # its joints follow their command: the potentiometers' lead alone
     "tail_tether_N",
     *(e.main.key for e in LIBRARY.values() if e.sensor or e.discrepancy),
     *REFERENCE_ONLY,
@@ -176,7 +177,8 @@ def synthesize_campaign(
         raise Rc1Error(f"synthesize: truth model must be one of {', '.join(TRUTH_MODELS)}, got {truth_model!r}")
     if truth_model == "reference" and (beyond := sorted(set(effects or {}) - set(REFERENCE_EFFECTS))):
         raise Rc1Error(
-            f"synthesize: the reference truth model can express wheel_toe_deg, tail_tether_N, the sensor faults, "
+            f"synthesize: the reference truth model can express wheel_toe_deg, tail_tether_N, "
+            "linkage_compliance_rad_per_Nm, the sensor faults, "
             f"the discrepancy terms (rc1 effects) and a floor seam only, not {', '.join(beyond)}"
         )
     if truth_model == "drake" and (only := sorted(set(effects or {}) & set(REFERENCE_ONLY))):
@@ -367,7 +369,7 @@ def _measure(run, scenario, trial_id, noise: Noise, rng, camera, t) -> Trial:
     n = len(t)
     sensors = sensor_model(scenario.effects)  # the sensor faults, before the noise
     lab = LabForms.from_effects(scenario.effects)
-    shafts = run.q + lab.linkage_rad_per_Nm * run.servo_torque
+    shafts = run.q + (lab.linkage_rad_per_Nm + sensors.linkage_rad_per_Nm) * run.servo_torque
     angles = np.column_stack([np.interp(t, run.t, shafts[:, j]) for j in range(NUM_JOINTS)])
     q = lab.quantized(sensors.potentiometers(angles) + rng.normal(0, math.radians(noise.potentiometer_deg), (n, 13)))
     for f in scenario.failures:

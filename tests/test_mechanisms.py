@@ -142,3 +142,61 @@ def assert_rolls_down_a_floor_against_its_scalar_equation(key: str, eps_m_s=None
 
 def test_the_snake_rolling_down_a_floor_with_a_tether_follows_its_scalar_equation():
     assert_rolls_down_a_floor_against_its_scalar_equation("tail_tether_N", TETHER_EPS_M_S)
+
+
+LINKAGE = {"linkage_compliance_rad_per_Nm": 0.01, "linkage_damping_Nm_s_per_rad": 0.05}
+
+
+def test_a_linkage_in_series_with_a_servo_by_hand():
+    """The servo acts on its shaft, the linkage (1 / c) carries its torque to the joint: kp in series with 1 / c, its
+    I and D terms scaled alike, the linkage's damping added; 0 leaves the servo; the replay's stiff joint becomes
+    the spring 1 / c."""
+    from rc1_drake.config import Servo
+    from rc1_drake.effects import running_servo, sensor_model
+    from rc1_drake.replay import REPLAY_SERVO
+
+    linked = running_servo(Servo(kp_Nm_per_rad=20.0, ki_Nm_per_rad_s=5.0, kd_Nm_s_per_rad=0.2), LINKAGE)
+    assert linked.kp_Nm_per_rad == pytest.approx(20.0 / 1.2)
+    assert linked.ki_Nm_per_rad_s == pytest.approx(5.0 / 1.2)
+    assert linked.kd_Nm_s_per_rad == pytest.approx(0.2 / 1.2 + 0.05)
+    assert running_servo(Servo(), {"linkage_compliance_rad_per_Nm": 0.0}) == Servo()
+    assert running_servo(REPLAY_SERVO, LINKAGE).kp_Nm_per_rad == pytest.approx(100.0, rel=1e-5)
+    assert sensor_model(LINKAGE).linkage_rad_per_Nm == 0.01
+
+
+def test_a_replay_through_the_linkage_agrees_on_both_engines_and_its_shafts_follow_the_readings():
+    """The working joints lag their readings by c tau, while the shafts (joint + c tau, what the potentiometers
+    read) follow the readings as the rigid joints did; the Drake engine builds the Diagram of the linked servo."""
+    from conftest import first_seconds
+
+    from rc1_drake.measurements import load_trial
+    from rc1_drake.replay import Replayer, tracking_rms_deg
+
+    trial = first_seconds(load_trial("data/paper_campaign/j7_1.json"), 2.0)
+    compiled = Replayer(trial, engine="compiled")
+    linked, rigid = compiled.run(Friction(), LINKAGE), compiled.run(Friction(), {})
+    assert_equivalent(Replayer(trial, engine="drake").run(Friction(), LINKAGE), linked)
+    working = [j - 1 for j in trial.working_joints]
+    lag = math.degrees(float(np.abs(linked.q - rigid.q)[:, working].max()))
+    assert lag > 0.2  # c tau of a few tenths of N m
+    assert tracking_rms_deg(linked, trial) < tracking_rms_deg(rigid, trial) + 0.1 * lag
+
+
+def test_a_replay_at_the_truths_linkage_recovers_what_the_rigid_replay_misses(tmp_path):
+    """Drake-truth trials whose potentiometers read the shafts behind a 0.02 rad/N m linkage: the replay with the
+    linkage lands the head far nearer the measured end than the rigid one."""
+    from rc1_drake.compare import score_trial
+    from rc1_drake.measurements import load_campaign
+    from rc1_drake.replay import Replayer
+    from rc1_drake.synthesize import Case, synthesize_campaign
+
+    effects = {"linkage_compliance_rad_per_Nm": 0.02}
+    stop = Stop(line_x_m=None, revolutions=None, time_limit_s=6.0)
+    synthesize_campaign(tmp_path / "c", design=[Case([], 1), Case([7], 1)], stop=stop, seed=5, effects=effects)
+    for trial in load_campaign(tmp_path / "c").trials:
+        replayer = Replayer(trial)
+        miss = {
+            c: score_trial(trial, replayer.run(Friction(), {"linkage_compliance_rad_per_Nm": c})).eq6_error_pct
+            for c in (0.0, 0.02)
+        }
+        assert miss[0.02] < 0.5 * miss[0.0], (trial.trial_id, miss)

@@ -68,7 +68,7 @@ def add_synthesize(sub) -> None:
         default="drake",
         help="drake: this project's Diagram through its servos; reference: the independent planar model "
         "of reference.py (kinematic joints, its own limit model, the head at rest at its start; effects: "
-        "wheel_toe, tail_tether, the sensor faults and the discrepancy terms; and --form)",
+        "wheel_toe, tail_tether, servo_linkage, the sensor faults and the discrepancy terms; and --form)",
     )
     syn.add_argument("--sample-period-s", type=float_arg, default=0.01, metavar="DT", help="the sensors' sample period")
     syn.add_argument(

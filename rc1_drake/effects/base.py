@@ -7,7 +7,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from ..config import NUM_JOINTS, Gait
+from ..config import NUM_JOINTS, Gait, Servo
 from ..discrepancy import NUM_TERMS
 
 
@@ -59,9 +59,12 @@ class SensorModel:
     camera_delay_s: float = 0.0  # a frame stamped t shows the head at t - delay
     imu_scale: float = 1.0  # the IMU reports imu_scale * yaw rate + imu_bias
     imu_bias_rad_s: float = 0.0
+    # The potentiometers sit on the servos' shafts, a compliant linkage away from the joints: a shaft leads its
+    # joint by this compliance times the torque its servo gives (effects.physical.ServoLinkage), rad per N m.
+    linkage_rad_per_Nm: float = 0.0
 
     def potentiometers(self, q) -> np.ndarray:
-        """What the potentiometers read of joint angles q (..., 13), rad."""
+        """What the potentiometers read of joint (or shaft) angles q (..., 13), rad."""
         return self.angle_gains * q + self.angle_offsets_rad
 
     @property
@@ -106,6 +109,10 @@ class Effect:
 
     def configure_sensors(self, sensors: SensorModel, values: dict[str, float]) -> None:
         """Change `sensors` for parameter `values` (a sensor fault's; physical effects leave them)."""
+
+    def servo(self, servo: Servo, values: dict[str, float]) -> Servo:
+        """The servo as the joints feel it (a compliant linkage in series with it)."""
+        return servo
 
     @property
     def main(self) -> EffectParameter:

@@ -5,7 +5,7 @@ import math
 
 import numpy as np
 
-from ..config import GRAVITY_M_S2, NUM_JOINTS, Gait, Rc1Error
+from ..config import GRAVITY_M_S2, NUM_JOINTS, Gait, Rc1Error, Servo
 from ..discrepancy import term_names
 from .base import Effect, EffectParameter, ModelSetup, SensorModel
 from .physical import (
@@ -18,6 +18,7 @@ from .physical import (
     LongitudinalFrictionAsymmetry,
     ModulePayload,
     ServoLag,
+    ServoLinkage,
     StribeckFriction,
     TailTether,
     WheelToe,
@@ -51,6 +52,7 @@ for _effect in (
     WheelToe(),
     ModulePayload(),
     ServoLag(),
+    ServoLinkage(),
     *(PotentiometerOffset(j) for j in range(1, NUM_JOINTS + 1)),
     *(PotentiometerGain(j) for j in range(1, NUM_JOINTS + 1)),
     CameraDelay(),
@@ -158,6 +160,14 @@ def commanded_gait(gait: Gait, effects: dict[str, float]) -> Gait:
     for effect in active(effects):
         gait = effect.gait(gait, effect_values(effects, effect))
     return gait
+
+
+def running_servo(servo: Servo, effects: dict[str, float]) -> Servo:
+    """The servo as the joints feel it, after the effects between servo and joint (servo_linkage); what both
+    engines run."""
+    for effect in active(effects):
+        servo = effect.servo(servo, effect_values(effects, effect))
+    return servo
 
 
 def sensor_model(effects: dict[str, float]) -> SensorModel:

@@ -7,7 +7,7 @@ import math
 
 import numpy as np
 
-from ..config import GRAVITY_M_S2, JOINT_LIMIT_DEG, NUM_JOINTS, JointGait, Rc1Error
+from ..config import GRAVITY_M_S2, JOINT_LIMIT_DEG, NUM_JOINTS, JointGait, Rc1Error, Servo
 from .base import Effect, EffectParameter
 
 
@@ -217,3 +217,36 @@ class ServoLag(Effect):
             for j in range(NUM_JOINTS)
         ]
         return dataclasses.replace(gait, joints=joints)
+
+
+class ServoLinkage(Effect):
+    """Each servo drives its module through a compliant four-bar linkage, and its potentiometer reads the servo's
+    shaft, not the joint: the shaft leads the joint by c tau (tau the torque the servo gives, c the compliance).
+    A replay's working joint then follows its reading through a torsional spring 1 / c in place of the paper's
+    kinematic joint (section 3), with the linkage's own damping d; a servo of gains (kp, ki, kd) acting on its
+    shaft gives the joint kp (theta - q) / (1 + kp c) and its I and D terms scaled alike (the linkage
+    quasi-static: its own resonance lies far above the gait's). 0 is the paper's rigid joint (nested models)."""
+
+    name = "servo_linkage"
+    summary = "a compliant linkage between each servo's shaft (what its potentiometer reads) and its joint"
+    default_candidate = False
+    differentiable = False  # its own columns by differences (k = 1 / compliance); the tangent follows the gains
+    parameters = (
+        EffectParameter("linkage_compliance_rad_per_Nm", 0.0, 0.2, probe=0.005),
+        EffectParameter("linkage_damping_Nm_s_per_rad", 0.0, 1.0, fitted=False, default=0.05),
+    )
+
+    def servo(self, servo, values) -> Servo:
+        compliance = values["linkage_compliance_rad_per_Nm"]
+        if compliance == 0.0:
+            return servo
+        scale = 1.0 / (1.0 + servo.kp_Nm_per_rad * compliance)
+        return dataclasses.replace(
+            servo,
+            kp_Nm_per_rad=servo.kp_Nm_per_rad * scale,
+            ki_Nm_per_rad_s=servo.ki_Nm_per_rad_s * scale,
+            kd_Nm_s_per_rad=servo.kd_Nm_s_per_rad * scale + values["linkage_damping_Nm_s_per_rad"],
+        )
+
+    def configure_sensors(self, sensors, values):
+        sensors.linkage_rad_per_Nm = values["linkage_compliance_rad_per_Nm"]

@@ -20,6 +20,7 @@ from ..effects import (
     coordinate_owner,
     effect_values,
     model_setup,
+    running_servo,
     shifted,
     stop_backstops,
 )
@@ -254,7 +255,7 @@ class _CompiledRun:
         )
         gravity = setup.gravity
         model = np.array([gravity[0], gravity[1], float(bool(gravity[0] or gravity[1]))])
-        s = scenario.servo
+        s = running_servo(scenario.servo, scenario.effects)
         gains = np.array([s.kp_Nm_per_rad, s.ki_Nm_per_rad_s, s.kd_Nm_s_per_rad, s.lead_s])
         self.constant = (
             self.log_state,
