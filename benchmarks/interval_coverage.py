@@ -58,9 +58,10 @@ CHOSE = range(0, 10)  # seeds kept for choosing rules; the table reports seeds f
 METHODS = ("program", "avs", "diagnose")
 # The rows of today's code, by method: identify's with the jackknife over failed joints (sysid.stats.uncertainty), the
 # diagnosis's with the friction it holds unidentified carried in its intervals (diagnose.loop.CONSIDER_LOG_SD) and
-# the jackknife over cases (diagnose.fit.reported_standard_errors, "2026-12-03b"); earlier rows stay in the rows file
+# the jackknife over cases (diagnose.fit.reported_standard_errors, "2026-12-03b"); identify's with no interval where its
+# fit stopped short of its least misfit (sysid.stats.stopped_short, "2026-12-04"); earlier rows stay in the rows file
 # (method_of).
-VERSIONS = {"program": "2026-12-02", "avs": "2026-12-02", "diagnose": "2026-12-03b"}
+VERSIONS = {"program": "2026-12-04", "avs": "2026-12-04", "diagnose": "2026-12-03b"}
 LAW = "+failed-joint-law"  # a diagnosis with the failed joints' law fitted as nuisance (diagnose's failed_joint_law)
 LINKAGE = "+linkage"  # a diagnosis offered the servos' linkage (effects.physical.ServoLinkage) beside the physical ones
 HIDDEN = ("none", "wheel_toe")
@@ -155,8 +156,10 @@ def campaign_of(seed: int, hidden: str, out: Path, form: str = "stop"):
 
 def _estimates_identify(result) -> dict:
     u = result.uncertainty
-    rows = zip(u.names, u.values, u.standard_errors, u.noise_standard_errors, u.identifiable, strict=True)
-    return {n: {"value": v, "se": se, "noise_se": nse, "interval": bool(ok)} for n, v, se, nse, ok in rows}
+    steps = u.step_to_least_misfit or [0.0] * len(u.names)
+    rows = zip(u.names, u.values, u.standard_errors, u.noise_standard_errors, u.identifiable, steps, strict=True)
+    return {n: {"value": v, "se": se, "noise_se": nse, "interval": bool(ok), "step": d}
+            for n, v, se, nse, ok, d in rows}  # fmt: skip
 
 
 def _estimates_diagnose(result) -> dict:

@@ -225,3 +225,26 @@ def test_a_coefficient_at_a_bound_of_its_range_is_no_measurement():
         seen[value] = u.identifiable[0]
     assert seen == {0.3: True, upper: False}
     assert (bound_side(0.3, 0.0, upper), bound_side(upper, 0.0, upper), bound_side(0.0, 0.0, upper)) == (None, ">", "<")
+
+
+def test_an_interval_is_given_only_where_the_fit_reached_its_least_misfit():
+    """mu_lat well seen: at the least-squares solution identifiable, its next Gauss-Newton step nil; where a fit
+    stopped 3 standard errors short of it (a step's small gain, AVS's last pass), not identifiable there, the warning
+    naming the step (to the solution, exactly: the residuals are linear); the screen at a start (fit_end False) judges
+    what the data see, not where the start is."""
+    rng = np.random.default_rng(11)
+    groups = np.repeat(np.arange(6), 30)
+    x = np.zeros((180, 5))
+    x[:, 1] = _smooth_design(rng, 6, 30)[:, 0]
+    y = x[:, 1] * Friction().mu_lat + 0.05 * rng.normal(size=180)
+    best = float(np.linalg.lstsq(x[:, [1]], y, rcond=None)[0][0])
+    residuals = LinearResiduals(x, y, groups)
+    at_best = uncertainty(residuals, Friction(mu_lat=best), input_noise_samples=0, fitted=["mu_lat"])
+    assert at_best.identifiable[1] and abs(at_best.step_to_least_misfit[1]) < 1e-9
+    short = best - 3.0 * at_best.standard_errors[1]
+    stopped = uncertainty(residuals, Friction(mu_lat=short), input_noise_samples=0, fitted=["mu_lat"])
+    assert not stopped.identifiable[1]
+    assert stopped.step_to_least_misfit[1] == pytest.approx(best - short, rel=1e-6)
+    assert any(w.startswith("mu_lat: the fit stopped short of its least misfit") for w in stopped.warnings())
+    screen = uncertainty(residuals, Friction(mu_lat=short), input_noise_samples=0, fit_end=False)
+    assert screen.identifiable[1]

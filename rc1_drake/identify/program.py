@@ -198,6 +198,7 @@ def screen(
         effects=effects,
         input_noise_samples=input_noise_samples,
         trial_jackknife_too=False,
+        fit_end=False,
     )
     hidden = {n for n, ok in zip(first.names, first.identifiable, strict=True) if not ok}
     return [dataclasses.replace(p, frozen=p.frozen or p.name in hidden) for p in parameters], first

@@ -64,6 +64,30 @@ def larger_covariance(s, j) -> np.ndarray:
 
 
 MAX_RELATIVE_ERROR = 0.3  # a coefficient is identifiable when its standard error is under this share of it
+# ... and, where a fit ended, when one more Gauss-Newton step would move it by at most this many standard errors: an
+# interval is centred on a least misfit, and a fit stopped short of one (a step's small gain, AVS's last pass, a kink)
+# would report one that its own linearization says is off-centre (a step under the fits' resolution aside: their
+# smallest step is 1e-3 of a coefficient's log)
+MAX_STEP_SE, STEP_RESOLUTION = 1.0, 1e-3
+
+
+def stopped_short(value: float, standard_error: float, step: float) -> bool:
+    """Whether the next Gauss-Newton step `step` would move a coefficient off its interval's centre (MAX_STEP_SE)."""
+    return abs(step) > MAX_STEP_SE * standard_error and abs(step) > STEP_RESOLUTION * abs(value)
+
+
+def _warning(name: str, value: float, se: float, step: float) -> str:
+    if math.isfinite(se) and se < MAX_RELATIVE_ERROR * abs(value) and stopped_short(value, se, step):
+        return (f"{name}: the fit stopped short of its least misfit (the next step would move it {step:+.3g}, "
+                f"{abs(step) / se:.1f} standard errors): its interval is not centred on a fit")  # fmt: skip
+    return (f"{name}: not identifiable from these trials (relative standard error "
+            f"{'inf' if not math.isfinite(se) else f'{100 * se / max(abs(value), 1e-12):.0f}%'}); its value is not "
+            f"a fit these trials support")  # fmt: skip
+
+
+def gauss_newton_step(jac, r) -> np.ndarray:
+    """The least-squares step -pinv(J) r from residuals `r` with columns `jac` (on the identifiable subspace)."""
+    return -np.linalg.lstsq(jac, r, rcond=1e-9)[0] if jac.shape[1] else np.zeros(0)
 
 
 def trial_jackknife(jac, r, groups) -> np.ndarray | None:
@@ -98,15 +122,13 @@ class Uncertainty:
     simulations: int
     # the sandwich's standard errors (every row independent), before the trial jackknife widened them where larger
     noise_standard_errors: list[float] = dataclasses.field(default_factory=list)
+    # per coefficient, the next Gauss-Newton step from here over what the fit moved (0 for the rest, and at a start)
+    step_to_least_misfit: list[float] = dataclasses.field(default_factory=list)
 
     def warnings(self) -> list[str]:
-        return [
-            f"{n}: not identifiable from these trials (relative standard error "
-            f"{'inf' if not math.isfinite(se) else f'{100 * se / max(abs(v), 1e-12):.0f}%'}); its value is not "
-            f"a fit these trials support"
-            for n, v, se, ok in zip(self.names, self.values, self.standard_errors, self.identifiable, strict=True)
-            if not ok
-        ]
+        steps = self.step_to_least_misfit or [0.0] * len(self.names)
+        rows = zip(self.names, self.values, self.standard_errors, self.identifiable, steps, strict=True)
+        return [_warning(n, v, se, d) for n, v, se, ok, d in rows if not ok]
 
     def table(self) -> str:
         lines = [
@@ -134,6 +156,7 @@ def uncertainty(
     input_noise_samples: int = INPUT_NOISE_SAMPLES,
     trial_jackknife_too: bool = True,
     fitted=None,
+    fit_end: bool = True,
 ) -> Uncertainty:
     """Standard errors and correlations of the free parameters from the residual Jacobian at
     (`friction`, `effects`): the sandwich (J^T J)^-1 J^T S J (J^T J)^-1 of least squares with S the
@@ -148,7 +171,10 @@ def uncertainty(
     mis-modelled law, a bias the trial jackknife cannot see (findings (34)). The jackknife's steps move only
     those: a direction the data do not see would swing every leave-one-out step along it, and through the
     correlations widen what the data do see. A parameter is identifiable when its relative standard error is below
-    `max_relative_error` and it lies inside its bounds. Costs one residual evaluation per free parameter, plus one.
+    `max_relative_error`, it lies inside its bounds and, at a fit's end (`fit_end`; not at a screen's start), the next
+    Gauss-Newton step over what the fit moved and the noise lets the data see would shift it by at most MAX_STEP_SE of
+    its standard error. Costs one
+    residual evaluation per free parameter, plus one.
 
     The Jacobian is taken in the parameters' own units (forward differences of 5% of the value, at least
     0.5% of the bounds' range for a coefficient, 2% of the range for an effect parameter), not in their
@@ -182,11 +208,15 @@ def uncertainty(
     se = [math.inf if null[i] else float(math.sqrt(max(cov[i, i], 0.0))) for i in range(n)]
     d = np.sqrt(np.clip(np.diag(cov), 1e-300, None))
     corr = np.where(np.outer(d, d) > 0, cov / np.outer(d, d), 0.0)
+    step = np.zeros(n)
+    if fit_end and seen:  # over what the fit moved and the data see (as the jackknife), the rest held
+        step[seen] = gauss_newton_step(jac[:, seen], r0)
     # a coefficient at a bound of its range is no measurement: the model's form, not the data, stopped it there
     identifiable = [
         math.isfinite(s) and s < max_relative_error * abs(v) and bound_side(v, p.lower, p.upper) is None
-        for s, v, p in zip(se, values, free, strict=True)
-    ]
+        and not stopped_short(v, s, d)
+        for s, v, p, d in zip(se, values, free, step, strict=True)
+    ]  # fmt: skip
     return Uncertainty(
         names=[p.name for p in free],
         values=values,
@@ -197,6 +227,7 @@ def uncertainty(
         residual_rms=float(np.sqrt(np.mean(r0**2))),
         simulations=getattr(residuals, "simulations", 0) - start_sims,
         noise_standard_errors=noise_se,
+        step_to_least_misfit=step.tolist(),
     )
 
 
