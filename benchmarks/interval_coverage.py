@@ -156,8 +156,8 @@ def campaign_of(seed: int, hidden: str, out: Path, form: str = "stop"):
 
 def _estimates_identify(result) -> dict:
     u = result.uncertainty
-    steps = u.step_to_least_misfit or [0.0] * len(u.names)
-    rows = zip(u.names, u.values, u.standard_errors, u.noise_standard_errors, u.identifiable, steps, strict=True)
+    rows = zip(u.names, u.values, u.standard_errors, u.noise_standard_errors, u.identifiable, u.step_to_least_misfit,
+               strict=True)  # fmt: skip
     return {n: {"value": v, "se": se, "noise_se": nse, "interval": bool(ok), "step": d}
             for n, v, se, nse, ok, d in rows}  # fmt: skip
 

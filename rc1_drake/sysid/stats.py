@@ -87,7 +87,7 @@ def _warning(name: str, value: float, se: float, step: float) -> str:
 
 def gauss_newton_step(jac, r) -> np.ndarray:
     """The least-squares step -pinv(J) r from residuals `r` with columns `jac` (on the identifiable subspace)."""
-    return -np.linalg.lstsq(jac, r, rcond=1e-9)[0] if jac.shape[1] else np.zeros(0)
+    return -np.linalg.lstsq(jac, r, rcond=1e-9)[0]
 
 
 def trial_jackknife(jac, r, groups) -> np.ndarray | None:
@@ -122,12 +122,14 @@ class Uncertainty:
     simulations: int
     # the sandwich's standard errors (every row independent), before the trial jackknife widened them where larger
     noise_standard_errors: list[float] = dataclasses.field(default_factory=list)
-    # per coefficient, the next Gauss-Newton step from here over what the fit moved (0 for the rest, and at a start)
+    # per coefficient, the next Gauss-Newton step from here over what the fit moved and the data see (0 for the rest,
+    # and at a start)
     step_to_least_misfit: list[float] = dataclasses.field(default_factory=list)
 
     def warnings(self) -> list[str]:
-        steps = self.step_to_least_misfit or [0.0] * len(self.names)
-        rows = zip(self.names, self.values, self.standard_errors, self.identifiable, steps, strict=True)
+        rows = zip(
+            self.names, self.values, self.standard_errors, self.identifiable, self.step_to_least_misfit, strict=True
+        )
         return [_warning(n, v, se, d) for n, v, se, ok, d in rows if not ok]
 
     def table(self) -> str:
@@ -173,8 +175,7 @@ def uncertainty(
     correlations widen what the data do see. A parameter is identifiable when its relative standard error is below
     `max_relative_error`, it lies inside its bounds and, at a fit's end (`fit_end`; not at a screen's start), the next
     Gauss-Newton step over what the fit moved and the noise lets the data see would shift it by at most MAX_STEP_SE of
-    its standard error. Costs one
-    residual evaluation per free parameter, plus one.
+    its standard error. Costs one residual evaluation per free parameter, plus one.
 
     The Jacobian is taken in the parameters' own units (forward differences of 5% of the value, at least
     0.5% of the bounds' range for a coefficient, 2% of the range for an effect parameter), not in their
