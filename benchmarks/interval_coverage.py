@@ -42,11 +42,10 @@ from doc_blocks import REPO_ROOT, append_row, check_block, load_rows, rows_file,
 from rc1_drake.config import FRICTION_NAMES, Friction, Stop
 from rc1_drake.diagnose import diagnose
 from rc1_drake.diagnose.coordinates import coordinate_bounds
-from rc1_drake.diagnose.loop import CONSIDER_LOG_SD
 from rc1_drake.identify import identify
 from rc1_drake.measurements import load_campaign
 from rc1_drake.synthesize import PAPER_DESIGN, Case, Noise, Variation, synthesize_campaign
-from rc1_drake.sysid.stats import bound_side, reported_interval
+from rc1_drake.sysid.stats import HELD_LOG_SD, bound_side, reported_interval
 
 PAGE, BLOCK, WRITER = (
     REPO_ROOT / "docs" / "identification.md",
@@ -57,11 +56,12 @@ ROWS = rows_file("interval_coverage")
 CHOSE = range(0, 10)  # seeds kept for choosing rules; the table reports seeds from 10 on
 METHODS = ("program", "avs", "diagnose")
 # The rows of today's code, by method: identify's with the jackknife over failed joints (sysid.stats.uncertainty), the
-# diagnosis's with the friction it holds unidentified carried in its intervals (diagnose.loop.CONSIDER_LOG_SD) and
+# diagnosis's with the friction it holds unidentified carried in its intervals (sysid.stats.HELD_LOG_SD) and
 # the jackknife over cases (diagnose.fit.reported_standard_errors, "2026-12-03b"); identify's with no interval where its
-# fit stopped short of its least misfit (sysid.stats.stopped_short, "2026-12-04"); earlier rows stay in the rows file
-# (method_of).
-VERSIONS = {"program": "2026-12-04", "avs": "2026-12-04", "diagnose": "2026-12-03b"}
+# fit stopped short of its least misfit (sysid.stats.stopped_short, "2026-12-04"); the program fit's screened at the
+# noise, the coefficients it held carried in its intervals (sysid.stats.held_covariance, "2026-12-04b"); earlier rows
+# stay in the rows file (method_of).
+VERSIONS = {"program": "2026-12-04b", "avs": "2026-12-04", "diagnose": "2026-12-03b"}
 LAW = "+failed-joint-law"  # a diagnosis with the failed joints' law fitted as nuisance (diagnose's failed_joint_law)
 LINKAGE = "+linkage"  # a diagnosis offered the servos' linkage (effects.physical.ServoLinkage) beside the physical ones
 HIDDEN = ("none", "wheel_toe")
@@ -271,7 +271,7 @@ def intervals(rows: list) -> tuple:
                 reported += 1
                 held += bool(holds(estimate, truth[name], name=name))
             if "considered_variance" in row and given(name, estimate):  # the fit's own, or without the held friction
-                carried = CONSIDER_LOG_SD**2 * row["considered_variance"].get(name, 0.0)
+                carried = HELD_LOG_SD**2 * row["considered_variance"].get(name, 0.0)
                 own = row.get("fit_standard_errors", {}).get(name, math.sqrt(max(estimate["se"] ** 2 - carried, 0.0)))
                 narrower = {"value": estimate["value"], "se": own}
                 before += 1

@@ -14,7 +14,7 @@ from ..identify.avs import avs
 from ..residuals import where_it_fails
 from ..sysid.evaluate import Checkpoint, Evaluator
 from ..sysid.residual import trial_residual
-from ..sysid.stats import bound_side, interval95
+from ..sysid.stats import HELD_LOG_SD, bound_side, interval95
 from .coordinates import START, coordinate_bounds, physics_names
 from .decide import NOT_DETECTABLE, decide, held_out_by_simulation, rank, screen_friction, unrefitted
 from .fit import considered_variance, fit, polish, reported_standard_errors, starts_fitted
@@ -35,9 +35,6 @@ CHECKED_CANDIDATES = 2  # of those, the best significant ones checked by simulat
 # A powered-off servo's law, unknown on every real robot: with `failed_joint_law`, these effects' coordinates are
 # nuisance in every fit of a campaign with failed joints (issue 67 item 3), not candidates.
 FAILED_JOINT_LAW = ("joint_coulomb_friction", "compliant_stop")
-# A friction coefficient no trial identifies is held where it is, known to a factor 2 (one standard deviation of its
-# log: a floor's friction is rarely known better before it is measured); every reported interval carries that.
-CONSIDER_LOG_SD = math.log(2.0)
 
 
 def diagnose(
@@ -482,7 +479,7 @@ class _Search:
         considered = [n for n in self.screened if n not in self.free]
         carried = considered_variance(lin, final_fit.names, considered)
         final = {
-            n: [float(lin.coordinate(n).value), math.sqrt(float(se) ** 2 + CONSIDER_LOG_SD**2 * c)]
+            n: [float(lin.coordinate(n).value), math.sqrt(float(se) ** 2 + HELD_LOG_SD**2 * c)]
             for n, se, c in zip(final_fit.names, reported_standard_errors(lin, final_fit), carried, strict=True)
         }
         not_detectable = list(unseen)

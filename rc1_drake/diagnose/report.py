@@ -109,7 +109,7 @@ class Diagnosis:
     wall_s: float
     final_coordinates: dict[str, list[float]] = dataclasses.field(default_factory=dict)  # name -> [value, se]
     starts: dict[str, list[float]] = dataclasses.field(default_factory=dict)  # "<trial>:<rate>" -> [value, se]
-    # the friction coefficients no trial identified, held (loop.CONSIDER_LOG_SD), and per final coordinate the
+    # the friction coefficients no trial identified, held (sysid.stats.HELD_LOG_SD), and per final coordinate the
     # variance they add to its interval at a factor e (fit.considered_variance), already in final_coordinates' se
     considered: list[str] = dataclasses.field(default_factory=list)
     considered_variance: dict[str, float] = dataclasses.field(default_factory=dict)

@@ -181,7 +181,9 @@ def held_warning(held: list[str], free: list[str]) -> str:
     """The program fit's warning for the coefficients the start's screen held; where it held every free one, what
     to do: a start far from the data sees nothing (diagnose searches from it first: docs/diagnosis.md, step 2)."""
     text = f"held at the start values (not identifiable at the start): {', '.join(held)}"
-    if set(free) <= set(held):
+    if not set(free) <= set(held):
+        text += "; the fitted coefficients' intervals carry them, each known to a factor 2"
+    else:
         text += (
             "; nothing was fitted: if the start's replays miss the data by far, the start may be far from them: "
             "`rc1 identify --method avs` searches from it, and its model file (--out) starts a program fit there "

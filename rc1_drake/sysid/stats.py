@@ -90,6 +90,21 @@ def gauss_newton_step(jac, r) -> np.ndarray:
     return -np.linalg.lstsq(jac, r, rcond=1e-9)[0]
 
 
+# A friction coefficient a fit held (its start's screen did not see it) is known only to a factor 2 (one standard
+# deviation of its log: a floor's friction is rarely known better before it is measured); the coefficients fitted
+# beside it carry that in their intervals, as the diagnosis's do
+HELD_LOG_SD = math.log(2.0)
+
+
+def held_covariance(jac, held_jac, held_values) -> np.ndarray:
+    """The covariance the least-squares fit of the columns `jac` takes from coefficients held at `held_values` (their
+    columns `held_jac`) though known only to a factor 2 (HELD_LOG_SD of their log): a consider covariance, each held
+    coefficient's uncertainty carried through the fit as orbit determination carries the parameters it does not
+    estimate."""
+    carried = -np.linalg.lstsq(jac, held_jac, rcond=1e-9)[0] * (HELD_LOG_SD * np.abs(np.asarray(held_values)))
+    return carried @ carried.T
+
+
 def trial_jackknife(jac, r, groups) -> np.ndarray | None:
     """The linearized leave-one-trial-out jackknife's covariance of a least-squares step from residuals r (rows
     grouped by trial, `groups`): each trial left out in turn, the step -pinv(J_rest) r_rest on the rest, and
@@ -125,6 +140,8 @@ class Uncertainty:
     # per coefficient, the next Gauss-Newton step from here over what the fit moved and the data see (0 for the rest,
     # and at a start)
     step_to_least_misfit: list[float] = dataclasses.field(default_factory=list)
+    # the coefficients the fit held whose uncertainty (HELD_LOG_SD) the fitted ones' intervals carry
+    carried: list[str] = dataclasses.field(default_factory=list)
 
     def warnings(self) -> list[str]:
         rows = zip(
@@ -173,9 +190,11 @@ def uncertainty(
     mis-modelled law, a bias the trial jackknife cannot see (findings (34)). The jackknife's steps move only
     those: a direction the data do not see would swing every leave-one-out step along it, and through the
     correlations widen what the data do see. A parameter is identifiable when its relative standard error is below
-    `max_relative_error`, it lies inside its bounds and, at a fit's end (`fit_end`; not at a screen's start), the next
-    Gauss-Newton step over what the fit moved and the noise lets the data see would shift it by at most MAX_STEP_SE of
-    its standard error. Costs one residual evaluation per free parameter, plus one.
+    `max_relative_error`, it lies inside its bounds and, at a fit's end (`fit_end`), the next Gauss-Newton step over
+    what the fit moved and the noise lets the data see would shift it by at most MAX_STEP_SE of its standard error.
+    At a screen's start (not `fit_end`) S is the noise's alone (each standardized residual's variance 1, plus the
+    input noise): what the data would see, however far the start's replays miss them. Costs one residual evaluation
+    per free parameter, plus one.
 
     The Jacobian is taken in the parameters' own units (forward differences of 5% of the value, at least
     0.5% of the bounds' range for a coefficient, 2% of the range for an effect parameter), not in their
@@ -194,7 +213,10 @@ def uncertainty(
         per_percent.append(0.01 * (abs(value) if p.is_friction and value > 0 else span))
     jac = np.column_stack(columns)
     n = jac.shape[1]
-    spread = np.diag(channel_variances(r0, getattr(residuals, "channels", None), n))
+    # at a fit's end the residuals' own variance (a misfit beyond the noise widens the intervals); at a start the
+    # noise's (1 a standardized residual): a far start's misfit would hide from the screen what the data see
+    variances = channel_variances(r0, getattr(residuals, "channels", None), n) if fit_end else np.ones(len(r0))
+    spread = np.diag(variances)
     if input_noise_samples and hasattr(residuals, "input_noise"):
         spread = spread + residuals.input_noise(friction, effects, samples=input_noise_samples)
     cov, null = sandwich(jac, spread)
@@ -206,6 +228,9 @@ def uncertainty(
         jackknife = trial_jackknife(jac[:, seen], r0, getattr(residuals, by, None))
         if jackknife is not None:
             cov[np.ix_(seen, seen)] = larger_covariance(cov[np.ix_(seen, seen)], jackknife)
+    held = [i for i, p in enumerate(free) if p.name not in moved and p.is_friction] if fit_end else []
+    if held and seen:
+        cov[np.ix_(seen, seen)] += held_covariance(jac[:, seen], jac[:, held], [values[i] for i in held])
     se = [math.inf if null[i] else float(math.sqrt(max(cov[i, i], 0.0))) for i in range(n)]
     d = np.sqrt(np.clip(np.diag(cov), 1e-300, None))
     corr = np.where(np.outer(d, d) > 0, cov / np.outer(d, d), 0.0)
@@ -229,6 +254,7 @@ def uncertainty(
         simulations=getattr(residuals, "simulations", 0) - start_sims,
         noise_standard_errors=noise_se,
         step_to_least_misfit=step.tolist(),
+        carried=[free[i].name for i in held] if seen else [],
     )
 
 
