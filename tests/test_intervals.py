@@ -208,7 +208,7 @@ def test_a_coefficient_the_data_do_not_see_does_not_swing_the_jackknife_of_one_t
 def test_a_coefficient_at_a_bound_of_its_range_is_no_measurement():
     """c_joint well seen (relative standard error ~1%) is identifiable inside its range [0, 0.5] and not at its
     upper bound, where the fit was stopped by the range, not the data (identify's uncertainty, as the diagnosis's
-    at_bound); the same rule (bound_side) makes the report's one-sided text."""
+    at_bound), its warning saying so; the same rule (bound_side) makes the report's one-sided text."""
     from rc1_drake.sysid.parameters import DEFAULT_PARAMETERS
     from rc1_drake.sysid.stats import bound_side
 
@@ -224,6 +224,10 @@ def test_a_coefficient_at_a_bound_of_its_range_is_no_measurement():
         assert u.standard_errors[0] < 0.05 * value
         seen[value] = u.identifiable[0]
     assert seen == {0.3: True, upper: False}
+    assert [w for w in u.warnings() if w.startswith("c_joint")] == [
+        f"c_joint: the fit ran to the upper bound of its range ({upper:.3g}): no measurement, the model's form stopped "
+        "it there"
+    ]
     assert (bound_side(0.3, 0.0, upper), bound_side(upper, 0.0, upper), bound_side(0.0, 0.0, upper)) == (None, ">", "<")
 
 

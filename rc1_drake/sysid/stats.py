@@ -76,13 +76,28 @@ def stopped_short(value: float, standard_error: float, step: float) -> bool:
     return abs(step) > MAX_STEP_SE * standard_error and abs(step) > STEP_RESOLUTION * abs(value)
 
 
-def _warning(name: str, value: float, se: float, step: float) -> str:
-    if math.isfinite(se) and se < MAX_RELATIVE_ERROR * abs(value) and stopped_short(value, se, step):
+def why_not_identifiable(
+    name: str,
+    value: float,
+    se: float,
+    step: float,
+    *,
+    bound: str | None,
+    max_relative_error: float = MAX_RELATIVE_ERROR,
+) -> str | None:
+    """Why a coefficient's interval is not given (None where it is): unseen, at a bound of its range, or stopped
+    short of its least misfit (uncertainty()'s rules, in that order)."""
+    if not math.isfinite(se) or se >= max_relative_error * abs(value):
+        return (f"{name}: not identifiable from these trials (relative standard error "
+                f"{'inf' if not math.isfinite(se) else f'{100 * se / max(abs(value), 1e-12):.0f}%'}); its value is "
+                f"not a fit these trials support")  # fmt: skip
+    if bound is not None:
+        return (f"{name}: the fit ran to the {'lower' if bound == '<' else 'upper'} bound of its range ({value:.3g}): "
+                f"no measurement, the model's form stopped it there")  # fmt: skip
+    if stopped_short(value, se, step):
         return (f"{name}: the fit stopped short of its least misfit (the next step would move it {step:+.3g}, "
                 f"{abs(step) / se:.1f} standard errors): its interval is not centred on a fit")  # fmt: skip
-    return (f"{name}: not identifiable from these trials (relative standard error "
-            f"{'inf' if not math.isfinite(se) else f'{100 * se / max(abs(value), 1e-12):.0f}%'}); its value is not "
-            f"a fit these trials support")  # fmt: skip
+    return None
 
 
 def gauss_newton_step(jac, r) -> np.ndarray:
@@ -143,11 +158,18 @@ class Uncertainty:
     # the coefficients the fit held whose uncertainty (HELD_LOG_SD) the fitted ones' intervals carry
     carried: list[str] = dataclasses.field(default_factory=list)
 
+    # per coefficient, why its interval is not given (why_not_identifiable; None where it is)
+    reasons: list = dataclasses.field(default_factory=list)
+
     def warnings(self) -> list[str]:
-        rows = zip(
-            self.names, self.values, self.standard_errors, self.identifiable, self.step_to_least_misfit, strict=True
-        )
-        return [_warning(n, v, se, d) for n, v, se, ok, d in rows if not ok]
+        """Why each coefficient not called identifiable is not: its reason, or that a fit held it (fit_screened)."""
+        reasons = self.reasons or [None] * len(self.names)
+        rows = zip(self.names, self.values, self.standard_errors, self.identifiable, reasons, strict=True)
+        return [
+            why or why_not_identifiable(n, v, se, 0.0, bound=None) or f"{n}: held where the fit started, not fitted"
+            for n, v, se, ok, why in rows
+            if not ok
+        ]
 
     def table(self) -> str:
         lines = [
@@ -238,11 +260,13 @@ def uncertainty(
     if fit_end and seen:  # over what the fit moved and the data see (as the jackknife), the rest held
         step[seen] = gauss_newton_step(jac[:, seen], r0)
     # a coefficient at a bound of its range is no measurement: the model's form, not the data, stopped it there
-    identifiable = [
-        math.isfinite(s) and s < max_relative_error * abs(v) and bound_side(v, p.lower, p.upper) is None
-        and not stopped_short(v, s, d)
+    reasons = [
+        why_not_identifiable(
+            p.name, v, s, d, bound=bound_side(v, p.lower, p.upper), max_relative_error=max_relative_error
+        )
         for s, v, p, d in zip(se, values, free, step, strict=True)
-    ]  # fmt: skip
+    ]
+    identifiable = [why is None for why in reasons]
     return Uncertainty(
         names=[p.name for p in free],
         values=values,
@@ -255,6 +279,7 @@ def uncertainty(
         noise_standard_errors=noise_se,
         step_to_least_misfit=step.tolist(),
         carried=[free[i].name for i in held] if seen else [],
+        reasons=reasons,
     )
 
 
