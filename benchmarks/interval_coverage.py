@@ -42,6 +42,7 @@ from doc_blocks import REPO_ROOT, append_row, check_block, load_rows, rows_file,
 from rc1_drake.config import FRICTION_NAMES, Friction, Stop
 from rc1_drake.diagnose import diagnose
 from rc1_drake.diagnose.coordinates import coordinate_bounds
+from rc1_drake.diagnose.thresholds import Thresholds
 from rc1_drake.identify import identify
 from rc1_drake.measurements import load_campaign
 from rc1_drake.synthesize import PAPER_DESIGN, Case, Noise, Variation, synthesize_campaign
@@ -63,6 +64,9 @@ METHODS = ("program", "avs", "diagnose")
 # stay in the rows file (method_of).
 VERSIONS = {"program": "2026-12-04b", "avs": "2026-12-04", "diagnose": "2026-12-03b"}
 LAW = "+failed-joint-law"  # a diagnosis with the failed joints' law fitted as nuisance (diagnose's failed_joint_law)
+# a diagnosis whose candidates fitted at a bound of their range are set aside (Thresholds.set_aside_at_bound): a
+# variant, not landed
+AT_BOUND = "at-bound set aside"
 LINKAGE = "+linkage"  # a diagnosis offered the servos' linkage (effects.physical.ServoLinkage) beside the physical ones
 HIDDEN = ("none", "wheel_toe")
 # The truth's form: "stop", the failed joint's (below); "lab", that and another lab's sensors besides (synthesize.
@@ -184,13 +188,16 @@ def measure(seed: int, hidden: str, method: str, args) -> dict:
     started = time.perf_counter()
     if method == "diagnose":
         result = diagnose(campaign, workers=args.workers, probe_study=False, start_rates="fit", checkpoint=checkpoint,
-                          failed_joint_law=args.failed_joint_law, candidates=candidates)  # fmt: skip
+                          failed_joint_law=args.failed_joint_law, candidates=candidates,
+                          thresholds=Thresholds(set_aside_at_bound=args.set_aside_at_bound))  # fmt: skip
         estimates = _estimates_diagnose(result)
         extra = {"verdict": str(result.verdict), "accepted": result.accepted, "version": VERSIONS[method] + law,
                  "final_friction": dataclasses.asdict(result.friction),
                  "friction_search": result.friction_search, "considered": result.considered,
                  "considered_variance": result.considered_variance,
                  "fit_standard_errors": result.fit_standard_errors, "at_bound": result.at_bound}  # fmt: skip
+        if args.set_aside_at_bound:
+            extra["variant"] = AT_BOUND
     else:
         iterations = 3 if method == "avs" else 10
         result = identify(
@@ -366,6 +373,9 @@ def main():
     parser.add_argument("--form", choices=FORMS, default="stop", help="the truth's form (FORMS)")
     parser.add_argument("--failed-joint-law", action="store_true", help="diagnose with the failed joints' law fitted")
     parser.add_argument("--linkage", action="store_true", help="diagnose with the servos' linkage among the candidates")
+    parser.add_argument(
+        "--set-aside-at-bound", action="store_true", help="diagnose with candidates at a bound set aside (a variant)"
+    )
     args = parser.parse_args()
     methods, hidden = args.methods.split(","), args.hidden.split(",")
     if unknown := sorted(set(methods) - set(METHODS)) + sorted(set(hidden) - set(HIDDEN)):
@@ -376,6 +386,7 @@ def main():
     done = {(r["seed"], r["hidden"], method_of(r), form_of(r)) for r in load_rows(ROWS)}
     label = {"diagnose": "diagnose, failed-joint law"} if args.failed_joint_law else {}  # identify ignores both
     label = {"diagnose": "diagnose, linkage offered"} if args.linkage else label
+    label = {"diagnose": f"diagnose, {AT_BOUND}"} if args.set_aside_at_bound else label
     jobs = [(s, h, m) for s in parse_seeds(args.seeds) for h in hidden for m in methods
             if (s, h, label.get(m, m), args.form) not in done]  # fmt: skip
     for k, (seed, what, method) in enumerate([] if args.table_only else jobs, 1):

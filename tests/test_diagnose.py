@@ -413,6 +413,23 @@ def test_a_look_alike_that_is_not_significant_can_tie_but_never_be_accepted(loos
         assert loose.status == "not significant"
 
 
+def test_a_rival_fitted_at_a_bound_of_its_range_is_set_aside_only_in_the_variant_that_says_so():
+    """A true toe (70% gain) tied by a longitudinal asymmetry run to its bound (60%): today's rule calls them alike;
+    with set_aside_at_bound the one at its bound is neither rival nor accepted, and the toe is accepted."""
+    from rc1_drake.diagnose.thresholds import Thresholds
+
+    def pair():
+        toe, tied = _checked("wheel_toe", 30.0), _checked("longitudinal_friction_asymmetry", 40.0)
+        tied.at_bound = ["longitudinal_friction_asymmetry_ratio"]
+        return toe, tied
+
+    assert decide(list(pair())) == (None, ["wheel_toe", "longitudinal_friction_asymmetry"], None)
+    toe, tied = pair()
+    assert decide([toe, tied], Thresholds(set_aside_at_bound=True)) == ("wheel_toe", [], None)
+    assert tied.status.startswith("fitted at a bound of its range (longitudinal_friction_asymmetry_ratio)")
+    assert not tied.accepted
+
+
 def test_without_a_significant_candidate_a_helping_look_alike_decides_nothing():
     loose = _checked("b", 20.0)
     loose.wald_p = 0.01

@@ -6,7 +6,7 @@ import numpy as np
 from ..config import FRICTION_NAMES
 from ..effects import LIBRARY, effect_values
 from ..sysid.evaluate import Evaluator
-from ..sysid.stats import interval95, wald_p
+from ..sysid.stats import bound_side, interval95, wald_p
 from .coordinates import model_at, starts_at
 from .fit import Fit, fit
 from .linearize import Linearization, visibility
@@ -108,6 +108,7 @@ def rank(
                 status=status,
                 detectable_strength=detectable,
                 visibility=visibility(lin, name),
+                at_bound=[n for n, c in zip(own, coords, strict=True) if bound_side(values[n], c.lower, c.upper)],
             )
         )
     for c in results:
@@ -132,6 +133,10 @@ def decide(results: list[CandidateResult], thresholds: Thresholds = THRESHOLDS) 
     for c in results:
         if c.simulated and c not in helping:
             c.status = "no held-out gain when simulated"
+    if thresholds.set_aside_at_bound:
+        for c in (c for c in helping if c.at_bound):
+            c.status = f"fitted at a bound of its range ({', '.join(c.at_bound)}): the model's form, not this effect"
+        helping = [c for c in helping if not c.at_bound]
     significant = [c for c in helping if c.wald_p < thresholds.p_accept]
     if not significant:
         return None, [], None

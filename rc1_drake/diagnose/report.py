@@ -32,6 +32,7 @@ class CandidateResult:
     simulated: dict | None = None  # the check by simulation, when it was made
     experiment: str | None = None  # the kind of trial that would see it / tell it apart
     apart: dict[str, str] = dataclasses.field(default_factory=dict)  # another candidate -> the trial telling them apart
+    at_bound: list[str] = dataclasses.field(default_factory=list)  # its coordinates fitted at a bound of their range
 
 
 @dataclasses.dataclass
