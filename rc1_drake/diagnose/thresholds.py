@@ -37,7 +37,7 @@ class Thresholds:
     # Whether a candidate whose refined fit runs to a bound of its range is set aside (neither a rival nor accepted:
     # the model's form misfit absorbed, as a friction coefficient at its bound is no measurement) or kept as any
     # other. False (kept) is what the docs' rates were measured with; True is a variant, not landed: on
-    # interval_coverage's stop form 2 campaigns better, 1 worse of 12, its paper-grid rates not measured (findings (47)).
+    # interval_coverage's stop form 2 campaigns better, 1 worse of 12; paper-grid rates not measured (findings (47)).
     set_aside_at_bound: bool = False
 
 
